@@ -169,10 +169,8 @@ def within(a: NDArray[np.float64], groups: ArrayLike,
     counts = counts.astype(np.float64)
     means = np.zeros((counts.size,) + a.shape[1:])
     shape = (-1,) + (1,) * (a.ndim - 1)
-    if weights is None:
-        np.add.at(means, inverse, a)
-    else:
-        np.add.at(means, inverse, a * weights.reshape(shape))
+    np.add.at(means, inverse, a if weights is None else a * weights.reshape(shape))
+    if weights is not None:
         counts = np.bincount(inverse, weights=weights, minlength=counts.size)
     means /= counts.reshape(shape)
     return means, a - means[inverse]

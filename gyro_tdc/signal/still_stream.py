@@ -279,17 +279,14 @@ class StillWindows:
 
         The same windows and statistics as :meth:`add` one sample at a time.
         """
-        t = np.asarray(t, dtype=np.float64)
-        m = t.size
-        if not m:
+        if not (t := np.asarray(t, dtype=np.float64)).size:
             return []
-        x = np.full((m, _COLS), math.nan)
+        x = np.full((t.size, _COLS), math.nan)
         x[:, 0], x[:, 1:4] = t, gyro
         for cols, v in ((slice(4, 7), accel), (10, temp)):       # optional: NaN without
             if v is not None:
                 x[:, cols] = v
-        pending = self._take()
-        if pending is not None:
+        if (pending := self._take()) is not None:
             x = np.concatenate([pending, x])
         tt = x[:, 0]
         if self._grid:
