@@ -79,35 +79,34 @@ def _check_events(text: str, limits: YamlLimits, source: str,
         kind = type(event)
         if kind in _CLOSE:
             anchor, size = open_.pop()
-            if anchor is not None:
-                sizes[anchor] = size
-            if open_:
-                open_[-1][1] += size
-            continue
-        if kind not in _OPEN and kind not in (yaml.ScalarEvent, yaml.AliasEvent):
-            continue
-        alias = kind is yaml.AliasEvent
-        if kind in _OPEN and len(open_) >= limits.max_depth:
-            raise error(f'{source}: nesting deeper than {limits.max_depth} levels'
-                        f'{_line(event)} (the limit of a {limits.what})')
-        if event.anchor is not None and not limits.aliases:
-            raise error(f'{source}: YAML {"alias *" if alias else "anchor &"}{event.anchor}'
-                        f'{_line(event)}: anchors and aliases are not allowed in a {limits.what}')
-        if alias and any(frame[0] == event.anchor for frame in open_):
-            raise error(f'{source}: recursive YAML alias *{event.anchor}{_line(event)}')
-        size = sizes.get(event.anchor, 1) if alias else 1
-        total += size
-        if kind in _OPEN:
-            open_.append([event.anchor, 1])
+        elif kind in _OPEN or kind in (yaml.ScalarEvent, yaml.AliasEvent):
+            alias = kind is yaml.AliasEvent
+            if kind in _OPEN and len(open_) >= limits.max_depth:
+                raise error(f'{source}: nesting deeper than {limits.max_depth} levels'
+                            f'{_line(event)} (the limit of a {limits.what})')
+            if event.anchor is not None and not limits.aliases:
+                raise error(f'{source}: YAML {"alias *" if alias else "anchor &"}{event.anchor}'
+                            f'{_line(event)}: anchors and aliases are not allowed in a '
+                            f'{limits.what}')
+            if alias and any(frame[0] == event.anchor for frame in open_):
+                raise error(f'{source}: recursive YAML alias *{event.anchor}{_line(event)}')
+            size = sizes.get(event.anchor, 1) if alias else 1
+            if (total := total + size) > limits.max_nodes:
+                raise error(f'{source}: more than {limits.max_nodes} YAML nodes'
+                            + (' (aliases expanded)' if limits.aliases else '')
+                            + f'{_line(event)} (the limit of a {limits.what})')
+            if kind in _OPEN:
+                open_.append([event.anchor, 1])
+                continue
+            anchor = None if alias else event.anchor
         else:
-            if event.anchor is not None and not alias:
-                sizes[event.anchor] = 1
-            if open_:
-                open_[-1][1] += size
-        if total > limits.max_nodes:
-            raise error(f'{source}: more than {limits.max_nodes} YAML nodes'
-                        + (' (aliases expanded)' if limits.aliases else '')
-                        + f'{_line(event)} (the limit of a {limits.what})')
+            continue
+        # A node is complete (a collection closed, a scalar, an alias): its anchor's size is
+        # known and its parent holds it.
+        if anchor is not None:
+            sizes[anchor] = size
+        if open_:
+            open_[-1][1] += size
 
 
 def _malformed(exc: yaml.YAMLError, source: str, error: type[GyroTdcError]) -> GyroTdcError:
