@@ -335,12 +335,7 @@ class Stillness:
 
     def rejected(self) -> dict[str, int]:
         """Return the number of windows each test refused (reasons with a count only)."""
-        return _refusals(self.why)
-
-
-def _refusals(why: NDArray[np.str_]) -> dict[str, int]:
-    """Return how many windows each test refused, from their verdicts (refusing ones only)."""
-    return {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
+        return {r: int(np.count_nonzero(self.why == r)) for r in REASONS if np.any(self.why == r)}
 
 
 #: Rows per pass of :func:`window_moments` (its temporaries stay in the cache: under 1 MB).
@@ -462,10 +457,9 @@ def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
 
 def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
     """Return why a run has no still stretch, from the verdicts ``why`` of its windows."""
-    rej = _refusals(why)
-    if rej.get('motion', 0) == why.size:
+    if np.all(why == 'motion'):
         return 'every window is vetoed by a motion report'
-    if rej.get('brief'):
+    if np.any(why == 'brief'):
         return (f'no still stretch of {min_still_s:g} s or more (the longest still '
                 'stretch is shorter)' if min_still_s is not None else
                 f'no still stretch of {MIN_STILL_S:g} s, or of two windows and '
