@@ -333,8 +333,7 @@ class StillWindows:
     def _finish(self, x: NDArray[np.float64], start: NDArray[np.int64],
                 t_next: list) -> list[Window]:
         """Compute the statistics of the windows of ``x`` starting at ``start``; judge them."""
-        m = x.shape[0]
-        n = np.diff(np.r_[start, m])
+        n = np.diff(np.r_[start, x.shape[0]])
         g_mean, g_std = window_moments(x[:, 1:4], start, n)
         fin_g = np.isfinite(g_mean).all(axis=1) & np.isfinite(g_std).all(axis=1)
         acc = x[:, 4:7]
@@ -348,11 +347,11 @@ class StillWindows:
         given = np.logical_or.reduceat(np.isfinite(rate).any(axis=1), start)
         r_mean = window_moments(rate, start, n)[0] if given.any() else None
         temp = np.add.reduceat(np.ascontiguousarray(x[:, 10]), start) / n
-        stop = np.r_[start[1:], m]
         flag, self._moving = self._moving, False     # the flag of the window in progress
         out = []
-        for i in range(start.size):             # in turn: each lowers the floor of the next
-            rows, k, finite = x[int(start[i]):int(stop[i])], int(n[i]), bool(fin_g[i])
+        # The windows in turn: each lowers the floor the next is judged by.
+        for i, (a, k) in enumerate(zip(start.tolist(), n.tolist())):
+            rows, finite = x[a:a + k], bool(fin_g[i])
             t0, t1 = float(rows[0, 0]), float(rows[-1, 0])
             self.windows_seen += 1
             stds = [tuple(g_std[i].tolist()), tuple(a_std[i].tolist()) if fin_a[i] else None]
