@@ -305,10 +305,8 @@ def heldout(residual: Callable[[NDArray[np.bool_], NDArray[np.bool_]], NDArray[n
     for test, train in folds:
         r = residual(test, train)
         if g is not None:
-            g_test, seen = g[test], np.unique(g[train])
-            for s in np.unique(g_test):
-                if s in seen:
-                    continue
+            g_test = g[test]
+            for s in np.setdiff1d(g_test, g[train]):       # the sessions not trained on
                 m = g_test == s
                 if weights is None:
                     r[m] -= r[m].mean(axis=0)
