@@ -71,22 +71,10 @@ def block_counts(n: int, block: int) -> NDArray[np.float64]:
 
 def block_sum(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.float64]:
     """
-    Sum ``a`` over consecutive blocks of ``block`` rows.
+    Sum ``a`` (N, ...) over consecutive blocks of ``block`` (>= 1) rows of its first axis.
 
-    Parameters
-    ----------
-    a : ArrayLike, shape (N, ...)
-        Rows to sum (first axis).
-    block : int
-        Rows per block, >= 1.
-    partial : bool
-        Keep the last block when it is shorter than ``block`` (default); False drops it.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (B, ...)
-        Block sums, ``B = ceil(N / block)`` (``N // block`` when ``partial`` is False).
-
+    Returns the block sums (B, ...), ``B = ceil(N / block)``: the last block, when shorter
+    than ``block``, is kept unless ``partial`` is False (then ``B = N // block``).
     """
     block = _check_block(block)
     a = np.asarray(a, dtype=np.float64)
@@ -94,15 +82,13 @@ def block_sum(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.f
     full = n // block * block
     if not full:      # no whole block (e.g. a block longer than the data): no ones(block)
         head = np.zeros((0,) + a.shape[1:])
-        return head if not partial or n == 0 else a.sum(axis=0, keepdims=True)
-    ones = np.ones(block)
-    if a.ndim == 1:
-        head = a[:full].reshape(full // block, block) @ ones
+    elif a.ndim == 1:
+        head = a[:full].reshape(full // block, block) @ np.ones(block)
     else:
         # Rows flattened to (N, M) so one product per block sums every column at once.
         m = math.prod(a.shape[1:])
         flat = a.reshape(n, m)[:full].reshape(full // block, block, m)
-        head = (ones @ flat).reshape((full // block,) + a.shape[1:])
+        head = (np.ones(block) @ flat).reshape((full // block,) + a.shape[1:])
     if full == n or not partial:
         return head
     return np.concatenate([head, a[full:].sum(axis=0, keepdims=True)])
