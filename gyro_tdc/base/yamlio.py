@@ -109,14 +109,6 @@ def _check_events(text: str, limits: YamlLimits, source: str,
             open_[-1][1] += size
 
 
-def _malformed(exc: yaml.YAMLError, source: str, error: type[GyroTdcError]) -> GyroTdcError:
-    """Return ``error`` describing a YAML syntax error on one line."""
-    mark = getattr(exc, 'problem_mark', None)
-    where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark is not None else ''
-    problem = getattr(exc, 'problem', None) or type(exc).__name__
-    return error(f'{source}: malformed YAML{where}: {" ".join(str(problem).split())}')
-
-
 def load_yaml(text: str, limits: YamlLimits, *, source: str = '<string>',
               error: type[GyroTdcError] = GyroTdcError) -> Any:
     """
@@ -181,5 +173,8 @@ def read_yaml(path: str | os.PathLike, limits: YamlLimits, *,
     text = read_text(path, limits.max_bytes, limits.what, error)[0]
     try:
         return load_yaml(text, limits, source=str(path), error=error)
-    except yaml.YAMLError as exc:
-        raise _malformed(exc, str(path), error) from None
+    except yaml.YAMLError as exc:       # on one line
+        mark = getattr(exc, 'problem_mark', None)
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark is not None else ''
+        problem = getattr(exc, 'problem', None) or type(exc).__name__
+        raise error(f'{path}: malformed YAML{where}: {" ".join(str(problem).split())}') from None
