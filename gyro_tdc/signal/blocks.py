@@ -76,8 +76,7 @@ def block_sum(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.f
     Returns the block sums (B, ...), ``B = ceil(N / block)``: the last block, when shorter
     than ``block``, is kept unless ``partial`` is False (then ``B = N // block``).
     """
-    block = _check_block(block)
-    a = np.asarray(a, dtype=np.float64)
+    block, a = _check_block(block), np.asarray(a, dtype=np.float64)
     n = a.shape[0]
     full = n // block * block
     if not full:      # no whole block (e.g. a block longer than the data): no ones(block)
@@ -101,8 +100,7 @@ def block_mean(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.
     ``block`` 1 returns ``a`` as float64 (no copy when it is one). A shorter last block keeps
     its mean unless ``partial`` is False; ``B`` blocks as in :func:`block_sum`.
     """
-    block = _check_block(block)
-    a = np.asarray(a, dtype=np.float64)
+    block, a = _check_block(block), np.asarray(a, dtype=np.float64)
     if block == 1:
         return a
     counts = block_counts(a.shape[0], block)
@@ -118,8 +116,7 @@ def block_sumsq(a: ArrayLike, block: int) -> NDArray[np.float64]:
     ``a`` (N, ...) is summed along its first axis; the last block may be shorter, so the
     result has ``ceil(N / block)`` rows.
     """
-    block = _check_block(block)
-    a = np.asarray(a, dtype=np.float64)
+    block, a = _check_block(block), np.asarray(a, dtype=np.float64)
     n = a.shape[0]
     full = n // block * block
     stacked = a[:full].reshape((full // block, block) + a.shape[1:])

@@ -264,8 +264,7 @@ class NoiseFloor:
     """
 
     def __init__(self) -> None:
-        self.floor = np.full(3, math.inf)
-        self.quantum = np.full(3, math.inf)
+        self.floor, self.quantum = np.full(3, math.inf), np.full(3, math.inf)
         self._windows: deque[tuple[int, NDArray[np.float64]]] = deque()
         self._dof = 0
 

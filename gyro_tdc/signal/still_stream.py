@@ -186,8 +186,7 @@ class StillWindows:
     def reset(self, *, prior_std: ArrayLike | None = None) -> None:
         """Forget the floor and the window in progress (motion reports are kept)."""
         self.prior_std = None if prior_std is None else np.asarray(prior_std, float).reshape(3)
-        self.gyro_noise, self.accel_noise = NoiseFloor(), NoiseFloor()
-        self.windows_seen = 0
+        self.gyro_noise, self.accel_noise, self.windows_seen = NoiseFloor(), NoiseFloor(), 0
         self.restart()
 
     def restart(self) -> None:
@@ -200,8 +199,7 @@ class StillWindows:
         self._buf = array('d')
         self._chunk: NDArray[np.float64] | None = None
         self._k: int | None = None
-        self._t0 = math.nan
-        self._moving = False
+        self._t0, self._moving = math.nan, False
 
     gyro_floor = _floor('gyro_noise', 'Gyro noise floor, shape (3,), rad/s (inf: none yet).')
     accel_floor = _floor('accel_noise',
