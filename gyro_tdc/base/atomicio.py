@@ -150,8 +150,7 @@ def clean_leftovers(path: str | os.PathLike) -> list[str]:
         return []
     done, kept = [], []
     for name in names:
-        owned = _OWNED.fullmatch(name[len(prefix):])
-        if owned is None:
+        if (owned := _OWNED.fullmatch(name[len(prefix):])) is None:
             continue
         if owned['host'] != _HOST:
             kept.append(name)           # another host's process: it may be running
@@ -295,8 +294,7 @@ def _renameat2(src: Path, dst: Path, flags: int) -> bool:
 
     Raises OSError for any other failure (``dst`` exists with ``RENAME_NOREPLACE``...).
     """
-    func = _renameat2_func()
-    if func is None:
+    if (func := _renameat2_func()) is None:
         return False
     if func(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst), flags) == 0:
         return True

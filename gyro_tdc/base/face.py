@@ -59,10 +59,7 @@ def lazy(package: str, modules: Mapping[str, Sequence[str]]
         setattr(importlib.import_module(package), name, value)
         return value
 
-    def __dir__() -> list[str]:
-        return list(names)
-
     for name, module in where.items():
         if name == module:
             __getattr__(name)
-    return names, __getattr__, __dir__
+    return names, __getattr__, names.copy       # __dir__: a new list of the names each time

@@ -38,17 +38,14 @@ def plain(value: Any, *, nan_to_none: bool = False, str_keys: bool = True) -> An
     dicts; anything else is returned as it is. ``nan_to_none`` writes a NaN or infinite
     float as None (JSON has no NaN); ``str_keys`` turns mapping keys into str.
     """
-    if isinstance(value, np.ndarray):
-        return plain(value.tolist(), nan_to_none=nan_to_none, str_keys=str_keys)
-    if isinstance(value, Mapping):
-        return {(str(k) if str_keys else k): plain(v, nan_to_none=nan_to_none,
-                                                   str_keys=str_keys)
-                for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [plain(v, nan_to_none=nan_to_none, str_keys=str_keys) for v in value]
-    if nan_to_none and isinstance(value, (float, np.floating)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
+    def go(v: Any) -> Any:
+        if isinstance(v, np.ndarray):
+            return go(v.tolist())
+        if isinstance(v, Mapping):
+            return {(str(k) if str_keys else k): go(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [go(x) for x in v]
+        if nan_to_none and isinstance(v, (float, np.floating)):
+            return float(v) if math.isfinite(v) else None
+        return v.item() if isinstance(v, np.generic) else v
+    return go(value)

@@ -24,6 +24,7 @@ lazily; no ``rclpy``).
 
 from __future__ import annotations
 
+from contextlib import suppress
 import os
 from pathlib import Path
 from typing import Optional, Union
@@ -46,16 +47,6 @@ def _checkout_config_dir() -> Optional[Path]:
     return found if found.is_dir() and (_ROOT / 'package.xml').is_file() else None
 
 
-def _share_config_dir() -> Optional[Path]:
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        found = Path(get_package_share_directory(PACKAGE)) / 'config'
-    except (ImportError, LookupError, ValueError, OSError):
-        # PackageNotFoundError is a KeyError; an unset AMENT_PREFIX_PATH raises OSError.
-        return None
-    return found if found.is_dir() else None
-
-
 def config_dir() -> Path:
     """
     Return the directory holding gyro_tdc's shipped configuration files.
@@ -69,8 +60,12 @@ def config_dir() -> Path:
         If neither location exists.
 
     """
-    found = _checkout_config_dir() or _share_config_dir()
-    if found is None:
+    found = _checkout_config_dir()
+    if found is None:   # PackageNotFoundError is a KeyError; no AMENT_PREFIX_PATH: OSError
+        with suppress(ImportError, LookupError, ValueError, OSError):
+            from ament_index_python.packages import get_package_share_directory
+            found = Path(get_package_share_directory(PACKAGE)) / 'config'
+    if found is None or not found.is_dir():
         raise GyroTdcError(
             f'gyro_tdc config directory not found: expected {_ROOT / "config"} (source '
             f'checkout) or share/{PACKAGE}/config in a prefix on AMENT_PREFIX_PATH '

@@ -47,8 +47,7 @@ class Job(Generic[T]):
     """
 
     def __init__(self, name: str, origin: str) -> None:
-        self.name = name
-        self.origin = origin
+        self.name, self.origin = name, origin
         self.result: T | None = None
         self._done = threading.Event()
 

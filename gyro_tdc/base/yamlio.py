@@ -79,43 +79,34 @@ def _check_events(text: str, limits: YamlLimits, source: str,
         kind = type(event)
         if kind in _CLOSE:
             anchor, size = open_.pop()
-            if anchor is not None:
-                sizes[anchor] = size
-            if open_:
-                open_[-1][1] += size
-            continue
-        if kind not in _OPEN and kind not in (yaml.ScalarEvent, yaml.AliasEvent):
-            continue
-        alias = kind is yaml.AliasEvent
-        if kind in _OPEN and len(open_) >= limits.max_depth:
-            raise error(f'{source}: nesting deeper than {limits.max_depth} levels'
-                        f'{_line(event)} (the limit of a {limits.what})')
-        if event.anchor is not None and not limits.aliases:
-            raise error(f'{source}: YAML {"alias *" if alias else "anchor &"}{event.anchor}'
-                        f'{_line(event)}: anchors and aliases are not allowed in a {limits.what}')
-        if alias and any(frame[0] == event.anchor for frame in open_):
-            raise error(f'{source}: recursive YAML alias *{event.anchor}{_line(event)}')
-        size = sizes.get(event.anchor, 1) if alias else 1
-        total += size
-        if kind in _OPEN:
-            open_.append([event.anchor, 1])
+        elif kind in _OPEN or kind in (yaml.ScalarEvent, yaml.AliasEvent):
+            alias = kind is yaml.AliasEvent
+            if kind in _OPEN and len(open_) >= limits.max_depth:
+                raise error(f'{source}: nesting deeper than {limits.max_depth} levels'
+                            f'{_line(event)} (the limit of a {limits.what})')
+            if event.anchor is not None and not limits.aliases:
+                raise error(f'{source}: YAML {"alias *" if alias else "anchor &"}{event.anchor}'
+                            f'{_line(event)}: anchors and aliases are not allowed in a '
+                            f'{limits.what}')
+            if alias and any(frame[0] == event.anchor for frame in open_):
+                raise error(f'{source}: recursive YAML alias *{event.anchor}{_line(event)}')
+            size = sizes.get(event.anchor, 1) if alias else 1
+            if (total := total + size) > limits.max_nodes:
+                raise error(f'{source}: more than {limits.max_nodes} YAML nodes'
+                            + (' (aliases expanded)' if limits.aliases else '')
+                            + f'{_line(event)} (the limit of a {limits.what})')
+            if kind in _OPEN:
+                open_.append([event.anchor, 1])
+                continue
+            anchor = None if alias else event.anchor
         else:
-            if event.anchor is not None and not alias:
-                sizes[event.anchor] = 1
-            if open_:
-                open_[-1][1] += size
-        if total > limits.max_nodes:
-            raise error(f'{source}: more than {limits.max_nodes} YAML nodes'
-                        + (' (aliases expanded)' if limits.aliases else '')
-                        + f'{_line(event)} (the limit of a {limits.what})')
-
-
-def _malformed(exc: yaml.YAMLError, source: str, error: type[GyroTdcError]) -> GyroTdcError:
-    """Return ``error`` describing a YAML syntax error on one line."""
-    mark = getattr(exc, 'problem_mark', None)
-    where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark is not None else ''
-    problem = getattr(exc, 'problem', None) or type(exc).__name__
-    return error(f'{source}: malformed YAML{where}: {" ".join(str(problem).split())}')
+            continue
+        # A node is complete (a collection closed, a scalar, an alias): its anchor's size is
+        # known and its parent holds it.
+        if anchor is not None:
+            sizes[anchor] = size
+        if open_:
+            open_[-1][1] += size
 
 
 def load_yaml(text: str, limits: YamlLimits, *, source: str = '<string>',
@@ -182,5 +173,8 @@ def read_yaml(path: str | os.PathLike, limits: YamlLimits, *,
     text = read_text(path, limits.max_bytes, limits.what, error)[0]
     try:
         return load_yaml(text, limits, source=str(path), error=error)
-    except yaml.YAMLError as exc:
-        raise _malformed(exc, str(path), error) from None
+    except yaml.YAMLError as exc:       # on one line
+        mark = getattr(exc, 'problem_mark', None)
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark is not None else ''
+        problem = getattr(exc, 'problem', None) or type(exc).__name__
+        raise error(f'{path}: malformed YAML{where}: {" ".join(str(problem).split())}') from None

@@ -71,38 +71,23 @@ def block_counts(n: int, block: int) -> NDArray[np.float64]:
 
 def block_sum(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.float64]:
     """
-    Sum ``a`` over consecutive blocks of ``block`` rows.
+    Sum ``a`` (N, ...) over consecutive blocks of ``block`` (>= 1) rows of its first axis.
 
-    Parameters
-    ----------
-    a : ArrayLike, shape (N, ...)
-        Rows to sum (first axis).
-    block : int
-        Rows per block, >= 1.
-    partial : bool
-        Keep the last block when it is shorter than ``block`` (default); False drops it.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (B, ...)
-        Block sums, ``B = ceil(N / block)`` (``N // block`` when ``partial`` is False).
-
+    Returns the block sums (B, ...), ``B = ceil(N / block)``: the last block, when shorter
+    than ``block``, is kept unless ``partial`` is False (then ``B = N // block``).
     """
-    block = _check_block(block)
-    a = np.asarray(a, dtype=np.float64)
+    block, a = _check_block(block), np.asarray(a, dtype=np.float64)
     n = a.shape[0]
     full = n // block * block
     if not full:      # no whole block (e.g. a block longer than the data): no ones(block)
         head = np.zeros((0,) + a.shape[1:])
-        return head if not partial or n == 0 else a.sum(axis=0, keepdims=True)
-    ones = np.ones(block)
-    if a.ndim == 1:
-        head = a[:full].reshape(full // block, block) @ ones
+    elif a.ndim == 1:
+        head = a[:full].reshape(full // block, block) @ np.ones(block)
     else:
         # Rows flattened to (N, M) so one product per block sums every column at once.
         m = math.prod(a.shape[1:])
         flat = a.reshape(n, m)[:full].reshape(full // block, block, m)
-        head = (ones @ flat).reshape((full // block,) + a.shape[1:])
+        head = (np.ones(block) @ flat).reshape((full // block,) + a.shape[1:])
     if full == n or not partial:
         return head
     return np.concatenate([head, a[full:].sum(axis=0, keepdims=True)])
@@ -115,8 +100,7 @@ def block_mean(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.
     ``block`` 1 returns ``a`` as float64 (no copy when it is one). A shorter last block keeps
     its mean unless ``partial`` is False; ``B`` blocks as in :func:`block_sum`.
     """
-    block = _check_block(block)
-    a = np.asarray(a, dtype=np.float64)
+    block, a = _check_block(block), np.asarray(a, dtype=np.float64)
     if block == 1:
         return a
     counts = block_counts(a.shape[0], block)
@@ -132,8 +116,7 @@ def block_sumsq(a: ArrayLike, block: int) -> NDArray[np.float64]:
     ``a`` (N, ...) is summed along its first axis; the last block may be shorter, so the
     result has ``ceil(N / block)`` rows.
     """
-    block = _check_block(block)
-    a = np.asarray(a, dtype=np.float64)
+    block, a = _check_block(block), np.asarray(a, dtype=np.float64)
     n = a.shape[0]
     full = n // block * block
     stacked = a[:full].reshape((full // block, block) + a.shape[1:])

@@ -169,10 +169,8 @@ def within(a: NDArray[np.float64], groups: ArrayLike,
     counts = counts.astype(np.float64)
     means = np.zeros((counts.size,) + a.shape[1:])
     shape = (-1,) + (1,) * (a.ndim - 1)
-    if weights is None:
-        np.add.at(means, inverse, a)
-    else:
-        np.add.at(means, inverse, a * weights.reshape(shape))
+    np.add.at(means, inverse, a if weights is None else a * weights.reshape(shape))
+    if weights is not None:
         counts = np.bincount(inverse, weights=weights, minlength=counts.size)
     means /= counts.reshape(shape)
     return means, a - means[inverse]
@@ -307,10 +305,8 @@ def heldout(residual: Callable[[NDArray[np.bool_], NDArray[np.bool_]], NDArray[n
     for test, train in folds:
         r = residual(test, train)
         if g is not None:
-            g_test, seen = g[test], np.unique(g[train])
-            for s in np.unique(g_test):
-                if s in seen:
-                    continue
+            g_test = g[test]
+            for s in np.setdiff1d(g_test, g[train]):       # the sessions not trained on
                 m = g_test == s
                 if weights is None:
                     r[m] -= r[m].mean(axis=0)

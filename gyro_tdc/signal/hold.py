@@ -136,9 +136,7 @@ class TemperatureHold:
         tt, tc = np.asarray(self._t), np.asarray(self._c)
         i = np.searchsorted(tt, t, side='right') - 1
         j = np.clip(i, 0, None)
-        out = np.where(i >= 0, tc[j], math.nan)
-        out[(i >= 0) & (t - tt[j] > timeout)] = math.nan
-        return out
+        return np.where((i >= 0) & ~(t - tt[j] > timeout), tc[j], math.nan)    # NaN: not stale
 
     def forget_before(self, t: float) -> None:
         """Forget the readings no stamp from ``t`` (s) on needs: all before the one held at it."""

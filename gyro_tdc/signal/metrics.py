@@ -103,8 +103,7 @@ def noise_readouts(taus: NDArray[np.float64], adev: NDArray[np.float64]
     instability is the curve's minimum / 0.664, in deg/h. Returns
     ``{'arw_deg_sqrt_h': (3,), 'bias_instability_deg_h': (3,)}``.
     """
-    taus = np.asarray(taus, dtype=np.float64)
-    adev = np.asarray(adev, dtype=np.float64)
+    taus, adev = np.asarray(taus, dtype=np.float64), np.asarray(adev, dtype=np.float64)
     if taus.size == 0:
         nan = np.full(3, np.nan)
         return {'arw_deg_sqrt_h': nan, 'bias_instability_deg_h': nan}

@@ -121,20 +121,13 @@ class SessionTracker:
         #: The stream's pauses over GAP_PERIODS periods (at most BURST_MAX_S), the newest
         #: :data:`PAUSES_KEPT`: its rhythm, kept over sessions.
         self.rhythm: list[float] = []
-        self.session = int(first)
-        #: The current session's first stamp (None before any), the sample count at it and
-        #: what started it (``''`` for the first).
-        self.t0: float | None = None
-        self.k0 = 0
-        self.why = ''
-        #: The steps judged since the session started that were no break, and their sum.
-        self.pauses = 0
-        self.paused_s = 0.0
         #: The sessions a gap started, ``(session, gap s)``, the newest :data:`PAUSES_KEPT`.
         self.gaps: list[tuple[int, float]] = []
         #: The median of the stream's first :data:`PERIOD_STEPS` positive steps (None before).
         self.median: float | None = None
         self._steps: list[float] = []
+        self.session = int(first) - 1
+        self.start(None, '')                # the first session, before its first stamp
 
     def median_period(self, dt: NDArray[np.float64]) -> float | None:
         """Take the stream's next steps ``dt`` (s); return the median period once known."""
@@ -198,14 +191,17 @@ class SessionTracker:
             self.paused_s += d
         return why
 
-    def start(self, t: float, why: str, k: int = 0, gap: float = 0.0) -> int:
+    def start(self, t: float | None, why: str, k: int = 0, gap: float = 0.0) -> int:
         """
         Begin a new session at stamp ``t`` (the ``k``-th sample) after ``why``; return it.
 
         ``gap`` > 0 (s) is the gap that started it: :meth:`merges` may take it back.
         """
         self.session += 1
+        #: The current session's first stamp (None before any), the sample count at it and
+        #: what started it (``''`` for the first).
         self.t0, self.k0, self.why = t, k, why
+        #: The steps judged since the session started that were no break, and their sum.
         self.pauses, self.paused_s = 0, 0.0
         if gap > 0:
             self.gaps = (self.gaps + [(self.session, float(gap))])[-PAUSES_KEPT:]

@@ -158,20 +158,17 @@ def judge_windows(gyro_std: ArrayLike, accel_std: ArrayLike | None, gyro_thr: Ar
     """
     def over(x: ArrayLike, limit: ArrayLike) -> NDArray[np.bool_]:
         return ~np.all(np.asarray(x, dtype=np.float64).reshape(-1, 3) <= limit, axis=1)
-
-    def given(v: ArrayLike | None, test: Callable) -> NDArray[np.bool_] | None:
-        return None if v is None else test(v)
     w = np.asarray(gyro_std).reshape(-1, 3).shape[0]
-    checks = [('samples', given(counts, lambda c: np.asarray(c).reshape(w) < min_samples)),
-              ('non-finite', given(finite, lambda f: ~np.asarray(f, dtype=bool).reshape(w))),
-              ('motion', given(moving, lambda m: np.asarray(m, dtype=bool).reshape(w))),
-              ('gyro', over(gyro_std, np.asarray(gyro_thr))),
-              ('accel', given(accel_std, lambda a: over(a, np.asarray(accel_thr)))),
-              ('rate', given(mean_rate, lambda m: over(np.abs(np.asarray(m, float)), max_rate)))]
+    checks = [('samples', counts, lambda c: np.asarray(c).reshape(w) < min_samples),
+              ('non-finite', finite, lambda f: ~np.asarray(f, dtype=bool).reshape(w)),
+              ('motion', moving, lambda m: np.asarray(m, dtype=bool).reshape(w)),
+              ('gyro', gyro_std, lambda g: over(g, np.asarray(gyro_thr))),
+              ('accel', accel_std, lambda a: over(a, np.asarray(accel_thr))),
+              ('rate', mean_rate, lambda m: over(np.abs(np.asarray(m, float)), max_rate))]
     why = np.full(w, '', dtype='<U10')
-    for name, bad in reversed(checks):      # the first failed test wins
-        if bad is not None:
-            why[bad] = name
+    for name, given, bad in reversed(checks):      # the first failed test wins
+        if given is not None:
+            why[bad(given)] = name
     return why
 
 
@@ -246,8 +243,6 @@ class MotionReports:
     def veto(self, t0: float, t1: float) -> bool:
         """Return whether ``[t0, t1]`` overlaps motion; drop reports before the one held at t1."""
         mo = self.reports
-        if not mo:
-            return False
         mt = [r[0] for r in mo]
         moving = bool(windows_moving([t0], [t1], mt, [r[1] for r in mo])[0])
         held = max(int(np.searchsorted(mt, t1, side='right')) - 1, 0)
@@ -269,8 +264,7 @@ class NoiseFloor:
     """
 
     def __init__(self) -> None:
-        self.floor = np.full(3, math.inf)
-        self.quantum = np.full(3, math.inf)
+        self.floor, self.quantum = np.full(3, math.inf), np.full(3, math.inf)
         self._windows: deque[tuple[int, NDArray[np.float64]]] = deque()
         self._dof = 0
 
@@ -340,12 +334,7 @@ class Stillness:
 
     def rejected(self) -> dict[str, int]:
         """Return the number of windows each test refused (reasons with a count only)."""
-        return _refusals(self.why)
-
-
-def _refusals(why: NDArray[np.str_]) -> dict[str, int]:
-    """Return how many windows each test refused, from their verdicts (refusing ones only)."""
-    return {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
+        return {r: int(np.count_nonzero(self.why == r)) for r in REASONS if np.any(self.why == r)}
 
 
 #: Rows per pass of :func:`window_moments` (its temporaries stay in the cache: under 1 MB).
@@ -424,14 +413,6 @@ def long_enough(n: int, duration: float, se: Callable[[], ArrayLike], window: fl
         and bool(np.all(np.asarray(se(), dtype=np.float64) <= MAX_STILL_SE)))
 
 
-def _long_enough(g: NDArray[np.float64], duration: float, window: float,
-                 min_still_s: float | None) -> bool:
-    """Return whether a still stretch (its raw rate, its duration in s) is kept."""
-    n = g.shape[0]
-    return long_enough(n, duration, lambda: np.nanstd(g, axis=0, ddof=1) / math.sqrt(n),
-                       window, min_still_s)
-
-
 def stretch_edges(still: NDArray[np.bool_], steps: NDArray[np.float64], window: float,
                   cuts: ArrayLike = ()) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """
@@ -456,15 +437,16 @@ def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
     A stretch is a half-open sample range ``(start, stop)``; its duration, s, spans its
     stamps plus one sample period ``dt``. A gap in the stamps longer than a ``window``
     (the logger stopped) ends a stretch. The windows of a stretch too short to keep
-    (:func:`_long_enough`) are marked ``'brief'`` in ``why``, in place.
+    (:func:`long_enough`) are marked ``'brief'`` in ``why``, in place.
     """
     ends = np.append(starts[1:], t.shape[0])
     first_w, stop_w = stretch_edges(why == '', t[starts[1:]] - t[starts[1:] - 1], window)
     segments, durations = [], []
     for a, b in zip(first_w.tolist(), stop_w.tolist()):
         i0, i1 = int(starts[a]), int(ends[b - 1])
-        dur = float(t[i1 - 1] - t[i0]) + dt
-        if not _long_enough(g[i0:i1], dur, window, min_still_s):
+        n, dur = i1 - i0, float(t[i1 - 1] - t[i0]) + dt
+        if not long_enough(n, dur, lambda: np.nanstd(g[i0:i1], axis=0, ddof=1) / math.sqrt(n),
+                           window, min_still_s):
             why[a:b] = 'brief'
             continue
         segments.append((i0, i1))
@@ -474,10 +456,9 @@ def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
 
 def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
     """Return why a run has no still stretch, from the verdicts ``why`` of its windows."""
-    rej = _refusals(why)
-    if rej.get('motion', 0) == why.size:
+    if np.all(why == 'motion'):
         return 'every window is vetoed by a motion report'
-    if rej.get('brief'):
+    if np.any(why == 'brief'):
         return (f'no still stretch of {min_still_s:g} s or more (the longest still '
                 'stretch is shorter)' if min_still_s is not None else
                 f'no still stretch of {MIN_STILL_S:g} s, or of two windows and '
@@ -510,8 +491,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     still to itself. ``again``: this call's own result on the same samples and windows, whose
     window statistics are judged again (with other floors, veto or rate) instead of recomputed.
     """
-    t = np.asarray(t, dtype=np.float64)
-    g = np.asarray(gyro, dtype=np.float64)
+    t, g = np.asarray(t, dtype=np.float64), np.asarray(gyro, dtype=np.float64)
     n = t.shape[0]
     if t.ndim != 1 or g.shape != (n, 3):
         raise ValueError(f'Expected `t` of shape (N,) and `gyro` of shape (N, 3), got '

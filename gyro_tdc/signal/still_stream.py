@@ -186,8 +186,7 @@ class StillWindows:
     def reset(self, *, prior_std: ArrayLike | None = None) -> None:
         """Forget the floor and the window in progress (motion reports are kept)."""
         self.prior_std = None if prior_std is None else np.asarray(prior_std, float).reshape(3)
-        self.gyro_noise, self.accel_noise = NoiseFloor(), NoiseFloor()
-        self.windows_seen = 0
+        self.gyro_noise, self.accel_noise, self.windows_seen = NoiseFloor(), NoiseFloor(), 0
         self.restart()
 
     def restart(self) -> None:
@@ -200,8 +199,7 @@ class StillWindows:
         self._buf = array('d')
         self._chunk: NDArray[np.float64] | None = None
         self._k: int | None = None
-        self._t0 = math.nan
-        self._moving = False
+        self._t0, self._moving = math.nan, False
 
     gyro_floor = _floor('gyro_noise', 'Gyro noise floor, shape (3,), rad/s (inf: none yet).')
     accel_floor = _floor('accel_noise',
@@ -279,17 +277,14 @@ class StillWindows:
 
         The same windows and statistics as :meth:`add` one sample at a time.
         """
-        t = np.asarray(t, dtype=np.float64)
-        m = t.size
-        if not m:
+        if not (t := np.asarray(t, dtype=np.float64)).size:
             return []
-        x = np.full((m, _COLS), math.nan)
+        x = np.full((t.size, _COLS), math.nan)
         x[:, 0], x[:, 1:4] = t, gyro
         for cols, v in ((slice(4, 7), accel), (10, temp)):       # optional: NaN without
             if v is not None:
                 x[:, cols] = v
-        pending = self._take()
-        if pending is not None:
+        if (pending := self._take()) is not None:
             x = np.concatenate([pending, x])
         tt = x[:, 0]
         if self._grid:
@@ -336,8 +331,7 @@ class StillWindows:
     def _finish(self, x: NDArray[np.float64], start: NDArray[np.int64],
                 t_next: list) -> list[Window]:
         """Compute the statistics of the windows of ``x`` starting at ``start``; judge them."""
-        m = x.shape[0]
-        n = np.diff(np.r_[start, m])
+        n = np.diff(np.r_[start, x.shape[0]])
         g_mean, g_std = window_moments(x[:, 1:4], start, n)
         fin_g = np.isfinite(g_mean).all(axis=1) & np.isfinite(g_std).all(axis=1)
         acc = x[:, 4:7]
@@ -351,11 +345,11 @@ class StillWindows:
         given = np.logical_or.reduceat(np.isfinite(rate).any(axis=1), start)
         r_mean = window_moments(rate, start, n)[0] if given.any() else None
         temp = np.add.reduceat(np.ascontiguousarray(x[:, 10]), start) / n
-        stop = np.r_[start[1:], m]
         flag, self._moving = self._moving, False     # the flag of the window in progress
         out = []
-        for i in range(start.size):             # in turn: each lowers the floor of the next
-            rows, k, finite = x[int(start[i]):int(stop[i])], int(n[i]), bool(fin_g[i])
+        # The windows in turn: each lowers the floor the next is judged by.
+        for i, (a, k) in enumerate(zip(start.tolist(), n.tolist())):
+            rows, finite = x[a:a + k], bool(fin_g[i])
             t0, t1 = float(rows[0, 0]), float(rows[-1, 0])
             self.windows_seen += 1
             stds = [tuple(g_std[i].tolist()), tuple(a_std[i].tolist()) if fin_a[i] else None]
