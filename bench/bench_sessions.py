@@ -310,6 +310,41 @@ def logger(rng: np.random.Generator, k: int, rate: float = 1.0) -> dict:
     return d
 
 
+def _pan():
+    """Return the PAN recording, its stamps from 0 (s) and each sample's burst number."""
+    rec = read_pan_cubesat_csv(default_pan_csv())
+    t = rec.t - rec.t[0]
+    return rec, t, np.r_[0, np.cumsum(np.diff(t) > 2.0)]
+
+
+def _burst_means(err: np.ndarray, burst: np.ndarray, sel) -> np.ndarray:
+    """Return the means of ``err`` over each burst of ``sel`` (``burst``: each row's)."""
+    return np.array([err[burst == k].mean(axis=0) for k in sel])
+
+
+def _rms_dps(means: np.ndarray) -> np.ndarray:
+    """Return the RMS of burst means (rad/s) per axis, deg/s."""
+    return np.sqrt(np.mean(means ** 2, axis=0)) / DEG
+
+
+def _simple_anchors(rec, t: np.ndarray, burst: np.ndarray, train: Run, sel: list) -> tuple:
+    """
+    Return the simple anchors' RMS of burst means over ``sel`` (deg/s), per axis.
+
+    A line and a cubic fitted on ``train``: as fitted, and re-anchored on the first two
+    bursts of ``sel`` (two lists, line first).
+    """
+    head = np.isin(burst, sel[:2])
+    t0 = estimate_t0(train)
+    plain, anchored = [], []
+    for feats in ('dT', 'dT,dT2,dT3'):
+        m = fit_model([train], kind='poly', features=feats, t0=t0)
+        c = compensate(m, t, rec.temp_c, rec.gyro, out_of_range=DEFAULT_OUT_OF_RANGE)
+        plain.append(_rms_dps(_burst_means(c, burst, sel)))
+        anchored.append(_rms_dps(_burst_means(c - c[head].mean(axis=0), burst, sel)))
+    return plain, anchored
+
+
 def real_recording(held_bursts: int = 5) -> dict | None:
     """
     Judge family 3: the PAN CubeSat TVAC recording, its last bursts held out.
@@ -322,40 +357,31 @@ def real_recording(held_bursts: int = 5) -> dict | None:
     held-out bursts, ~10 min). Returns None when the recording cannot be read.
     """
     try:
-        rec = read_pan_cubesat_csv(default_pan_csv())
+        rec, t, burst = _pan()
     except Exception as exc:  # the recording is optional for a bench run
         print(f'3. real recording: not read ({exc})')
         return None
-    t = rec.t - rec.t[0]
-    burst = np.r_[0, np.cumsum(np.diff(t) > 2.0)]
-    held = burst > burst.max() - held_bursts
-    head = held & (burst <= burst.max() - held_bursts + 2)
+    sel = list(range(burst.max() + 1 - held_bursts, burst.max() + 1))
+    held = np.isin(burst, sel)
+    head = np.isin(burst, sel[:2])
     zero = np.zeros_like(rec.gyro)
     train = Run(t[~held], rec.temp_c[~held], rec.gyro[~held], zero[~held], 'pan-train')
     ours = _train_default([train], [0])
 
-    def burst_rms(err: np.ndarray) -> np.ndarray:
-        b = burst[held]
-        means = np.array([err[b == k].mean(axis=0) for k in np.unique(b)])
-        return np.sqrt(np.mean(means ** 2, axis=0)) / DEG
+    def burst_rms(err: np.ndarray) -> np.ndarray:      # err: the held-out rows
+        return _rms_dps(_burst_means(err, burst[held], sel))
 
-    t0 = estimate_t0(train)
-    plain, anchored = [], []
-    for feats in ('dT', 'dT,dT2,dT3'):
-        m = fit_model([train], kind='poly', features=feats, t0=t0)
-        c = compensate(m, t, rec.temp_c, rec.gyro, out_of_range=DEFAULT_OUT_OF_RANGE)
-        plain.append(burst_rms(c[held]))
-        anchored.append(burst_rms(c[held] - c[head].mean(axis=0)))
+    plain, anchored = _simple_anchors(rec, t, burst, train, sel)
     best = np.min(plain + anchored, axis=0)
     res = {'best_dps': best, 'features': ','.join(ours.features)}
     out, _, _ = stream(ours, t, rec.gyro, None, t, rec.temp_c, Policy())
     res['ours'] = burst_rms(out[held]) / best
-    res.update(_offset_check(out, burst, held))
+    means = _burst_means(out, burst, range(burst.max() + 1))
+    res.update(_offset_check(means / DEG, held_bursts))
     # Causal anchors: each held-out burst re-anchored on the mean of the 1 or 5 bursts before.
-    means = np.array([out[burst == k].mean(axis=0) for k in np.unique(burst)])
     for n in (1, 5):
-        prior = np.array([means[k - n:k].mean(axis=0) for k in range(len(means))[-held_bursts:]])
-        shift = prior[burst[held] - burst[held][0]]
+        prior = np.array([means[k - n:k].mean(axis=0) for k in sel])
+        shift = prior[burst[held] - sel[0]]
         res[f'ours_on_previous_{n}'] = burst_rms(out[held] - shift) / best
     out, _, _ = stream(ours, t, rec.gyro, None, t, rec.temp_c, Policy(reanchor_on_start=False))
     res['ours_no_reanchor'] = burst_rms(out[held]) / best
@@ -374,22 +400,20 @@ def real_recording(held_bursts: int = 5) -> dict | None:
     res['ours_vs_best_unanchored'] = res['ours'] * best / np.min(plain, axis=0)
     res['gate_dps'] = ours.metrics['reanchor']['min_shift_dps']
     se2 = [np.var(rec.gyro[held][burst[held] == k], axis=0, ddof=1)
-           / np.count_nonzero(burst[held] == k) for k in np.unique(burst[held])]
+           / np.count_nonzero(burst[held] == k) for k in sel]
     res['floor'] = np.sqrt(np.mean(se2, axis=0)) / DEG / best
     return res
 
 
-def _offset_check(out: np.ndarray, burst: np.ndarray, held: np.ndarray) -> dict:
+def _offset_check(means: np.ndarray, n_held: int) -> dict:
     """
     Return how far ours' held-out offset is from chance, and whether it could be tracked.
 
-    From the burst means of ours' output (deg/s): the training bursts' scatter, the lag-1
-    autocorrelation of their means (near 0: burst to burst the offset is white, so no causal
-    re-anchoring can follow it), and the held-out bursts' mean offset over its standard error
-    under that scatter.
+    From the burst means of ours' output (deg/s, the last ``n_held`` held out): the training
+    bursts' scatter, the lag-1 autocorrelation of their means (near 0: burst to burst the
+    offset is white, so no causal re-anchoring can follow it), and the held-out bursts' mean
+    offset over its standard error under that scatter.
     """
-    means = np.array([out[burst == k].mean(axis=0) for k in np.unique(burst)]) / DEG
-    n_held = len(np.unique(burst[held]))
     train, test = means[:-n_held], means[-n_held:]
     dev = train - train.mean(axis=0)
     scatter = train.std(axis=0, ddof=1)
@@ -405,34 +429,27 @@ def _window_sweep(width: int = 5) -> None:
     Print family 3's figure for every window of ``width`` consecutive PAN bursts held out.
 
     Per window: ours trained on the other bursts, and ours fitted on all bursts (the scored
-    ones too: what no held-out model can beat), both over the best simple anchor (its fits
-    on the other bursts, anchored or not on the window's first two bursts), compensated in
-    one batch (``compensate``, no re-anchoring).
+    ones too: what no held-out model can beat), both over the best simple anchor
+    (:func:`_simple_anchors` of the window), compensated in one batch (``compensate``, no
+    re-anchoring).
     """
-    rec = read_pan_cubesat_csv(default_pan_csv())
-    t, zero = rec.t - rec.t[0], np.zeros_like(rec.gyro)
-    burst = np.r_[0, np.cumsum(np.diff(t) > 2.0)]
+    rec, t, burst = _pan()
+    zero = np.zeros_like(rec.gyro)
 
-    def rms(c: np.ndarray, sel: list) -> np.ndarray:
-        return np.sqrt(np.mean([c[burst == k].mean(axis=0) ** 2 for k in sel], axis=0)) / DEG
+    def rms(model, sel: list) -> np.ndarray:
+        c = compensate(model, t, rec.temp_c, rec.gyro, out_of_range=DEFAULT_OUT_OF_RANGE)
+        return _rms_dps(_burst_means(c, burst, sel))
 
-    def out(model) -> np.ndarray:
-        return compensate(model, t, rec.temp_c, rec.gyro, out_of_range=DEFAULT_OUT_OF_RANGE)
-
-    every = out(_train_default([Run(t, rec.temp_c, rec.gyro, zero, 'pan-all')], [0]))
+    every = _train_default([Run(t, rec.temp_c, rec.gyro, zero, 'pan-all')], [0])
     print(f'  {width} bursts held out from burst k: ours (held out) / ours fitted on every '
           'burst, over the best simple anchor x y z')
     ratios = []
     for k in range(burst.max() + 2 - width):
         sel = list(range(k, k + width))
-        held, head = np.isin(burst, sel), np.isin(burst, sel[:2])
+        held = np.isin(burst, sel)
         train = Run(t[~held], rec.temp_c[~held], rec.gyro[~held], zero[~held], 'pan-train')
-        fits = [out(fit_model([train], kind='poly', features=f, t0=estimate_t0(train)))
-                for f in ('dT', 'dT,dT2,dT3')]
-        best = np.min([rms(c - a * c[head].mean(axis=0), sel) for c in fits for a in (0, 1)],
-                      axis=0)
-        ratios.append((rms(out(_train_default([train], [0])), sel) / best,
-                       rms(every, sel) / best))
+        best = np.min(sum(_simple_anchors(rec, t, burst, train, sel), []), axis=0)
+        ratios.append((rms(_train_default([train], [0]), sel) / best, rms(every, sel) / best))
         print(f'  {k:2d}  ' + '  / '.join(' '.join(f'{v:6.3f}' for v in r)
                                           for r in ratios[-1]))
     r = np.array(ratios) <= 1.05 + 1e-12
