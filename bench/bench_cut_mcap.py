@@ -27,11 +27,16 @@ on close) and the file named as rosbag2 names it; a sqlite3 shape is added, whos
 must read messages of the uncut bag (any of them, in order) or be refused. Every read must
 then also warn of the missing metadata.yaml. ``--cut-metadata``: the same, but metadata.yaml
 is cut at a random byte too (the power went while rosbag2 wrote it on close); a read must
-warn of it as damaged unless what is left holds every key rosbag2 requires. ::
+warn of it as damaged unless what is left holds every key rosbag2 requires. ``--driver``:
+each copy is also read through the driver-type path (``--input-frame frd``: read by field,
+message by message); it must give the plain read's messages (y and z negated) with one
+warning of the cut, or be refused in one line; printed per shape: the same, refused (of
+which the plain read reads), defects. ::
 
     .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 0
     .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 1 --no-metadata
     .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 2 --cut-metadata
+    .venv/bin/python bench/bench_cut_mcap.py --cuts 20 --seed 3 --no-metadata --driver
 """
 
 import argparse
@@ -46,7 +51,7 @@ for extra in (ROOT, ROOT / 'test' / 'support'):
         sys.path.insert(0, str(extra))
 
 from columnar_tape import _chamber, _write  # noqa: E402
-from gyro_tdc.data import read_bag  # noqa: E402
+from gyro_tdc.data import DriverInputs, normalize_bag, read_bag  # noqa: E402
 from gyro_tdc.data.bag.metadata import missing  # noqa: E402
 from gyro_tdc.errors import DatasetError  # noqa: E402
 import numpy as np  # noqa: E402
@@ -93,6 +98,27 @@ def judge(bag: Path, ref, cut_at: int, size: int, bare: bool) -> tuple[str, floa
     return ('read' if warned else 'defect: no warning'), 1.0 - n / len(ref.imu_t)
 
 
+def judge_driver(bag: Path, out: Path, plain) -> str:
+    """Return the driver-type path's outcome on a cut copy against the plain read (or None)."""
+    warned = []
+    try:
+        got = read_bag(normalize_bag(bag, DriverInputs(input_frame='frd'), out=out,
+                                     imu_topic='/imu/data_raw',
+                                     temperature_topic='/imu/temperature', warn=warned.append))
+    except DatasetError as exc:
+        if '\n' in str(exc):
+            return 'defect: a refusal of lines'
+        return 'refused' if plain is None else 'refused (the plain read reads)'
+    except Exception as exc:  # noqa: B902 (any other exception is the defect counted)
+        return f'defect: {type(exc).__name__}'
+    if plain is None:
+        return 'read (the plain read refuses)'
+    same = (np.array_equal(got.imu_t, plain.imu_t) and np.array_equal(got.temp_c, plain.temp_c)
+            and np.array_equal(got.gyro * [1, -1, -1], plain.gyro))
+    cut = [w for w in warned if 'ends without the mcap footer' in w]
+    return 'same' if same and len(cut) == len(warned) <= 1 else 'defect: not the plain read'
+
+
 def main(argv=None) -> int:
     """Cut, read and count; print per shape."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
@@ -102,6 +128,8 @@ def main(argv=None) -> int:
                     help='cut copies without metadata.yaml, and a sqlite3 shape')
     ap.add_argument('--cut-metadata', action='store_true',
                     help='as --no-metadata, with metadata.yaml cut at a random byte')
+    ap.add_argument('--driver', action='store_true',
+                    help='read each copy through the driver-type path too')
     args = ap.parse_args(argv)
     bare = args.no_metadata or args.cut_metadata
     shapes = {k: v for k, v in SHAPES.items() if bare or v[0] == 'mcap'}
@@ -120,6 +148,7 @@ def main(argv=None) -> int:
             (path,) = [p for p in whole.iterdir() if p.suffix in ('.db3', '.mcap')]
             raw = path.read_bytes()
             counts, worst, defects = {'read': 0, 'refused': 0, 'defect': 0}, 0.0, []
+            driver: dict[str, int] = {}
             for j in range(args.cuts):
                 at = int(rng.integers(0, len(raw)))
                 bag = Path(tmp) / f'cut{k}_{j}'
@@ -133,6 +162,16 @@ def main(argv=None) -> int:
                         (bag / 'metadata.yaml').write_bytes(meta[:rng.integers(0, len(meta))])
                     (bag / path.name).rename(bag / f'{bag.name}_0{path.suffix}')
                 outcome, lost = judge(bag, ref, at, len(raw), bare)
+                if args.driver:
+                    try:
+                        plain = read_bag(bag)
+                    except DatasetError:
+                        plain = None
+                    seen = judge_driver(bag, Path(tmp) / f'driver{k}_{j}', plain)
+                    driver[seen.split(':')[0]] = driver.get(seen.split(':')[0], 0) + 1
+                    if seen.startswith('defect'):
+                        defects.append(f'driver path: {seen} (cut at {at} of {len(raw)} bytes)')
+                    shutil.rmtree(Path(tmp) / f'driver{k}_{j}', ignore_errors=True)
                 counts[outcome.split(':')[0]] += 1
                 if outcome == 'read':
                     worst = max(worst, lost)
@@ -144,6 +183,10 @@ def main(argv=None) -> int:
             print(f'  {name:18s} {counts["read"]:4d} {counts["refused"]:4d} '
                   f'{counts["defect"]:4d}   worst read {100 * worst:.1f} % lost '
                   f'({len(raw)} bytes, {n} IMU messages)')
+            if args.driver:
+                print('    driver-type path: ' + ', '.join(
+                    f'{v} {k}' for k, v in sorted(driver.items())))
+                total['defect'] += driver.get('defect', 0)
             for line in defects[:5]:
                 print(f'    {line}')
     print(f'{sum(total.values())} cut copies: {total["read"]} read, {total["refused"]} '

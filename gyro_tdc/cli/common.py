@@ -411,6 +411,7 @@ def driver_bags(args: argparse.Namespace, paths: Sequence[str]) -> list:
                              f'not the flight log {str(bag)!r}')
         dest = os.path.join(tmp.name, f'{k:03d}', bag.name)
         os.makedirs(os.path.dirname(dest))
-        out.append(str(normalize_bag(bag, inputs, imu_topic=args.imu_topic,
-                                     temperature_topic=args.temperature_topic, out=dest)))
+        out.append(str(normalize_bag(
+            bag, inputs, imu_topic=args.imu_topic, temperature_topic=args.temperature_topic,
+            out=dest, warn=lambda line, bag=bag: print(f'warning: {bag}: {line}', flush=True))))
     return out

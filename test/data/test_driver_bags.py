@@ -25,6 +25,7 @@ the arrays of the same samples written as Imu + Temperature.
 
 from __future__ import annotations
 
+import re
 import sqlite3
 
 from bags import null_message_data
@@ -152,11 +153,144 @@ def test_bad_driver_options_name_the_option(tmp_path, change, error, needles):
         assert needle in str(err.value)
 
 
-def test_an_mcap_file_cut_off_is_one_line_naming_it_and_mcap_recover(tmp_path):
-    # The driver-type path reads through rosbags, which refuses a file without its footer.
+def test_an_mcap_file_cut_off_is_read_to_its_last_chunk_with_a_warning(tmp_path):
+    # The power went: no footer and, as rosbag2 writes it on close, no metadata.yaml.
+    kw = dict(imu_topic='/fmu/out/sensor_gyro',
+              temperature_topic='/mip/sensor/temperature_statistics')
+    bag = driver_bag(tmp_path / 'px4', n=50000, storage='mcap')       # 1 MiB chunks: 2.5
+    whole = read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp_path / 'a', **kw), **kw)
+    (mcap,) = bag.glob('*.mcap')
+    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size * 3 // 4])
+    mcap.rename(mcap := bag / 'px4_0.mcap')
+    (bag / 'metadata.yaml').unlink()
+    warned = []
+    got = read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp_path / 'b',
+                                 warn=warned.append, **kw), **kw)
+    n, m = len(got.imu_t), len(got.temp_t)
+    assert 20000 < n < 50000 and 0 < m < len(whole.temp_t)
+    assert got.gyro.tobytes() == whole.gyro[:n].tobytes()
+    assert got.imu_t.tobytes() == whole.imu_t[:n].tobytes()
+    assert got.temp_c.tobytes() == whole.temp_c[:m].tobytes()
+    assert got.temp_t.tobytes() == whole.temp_t[:m].tobytes()
+    (line,) = warned
+    assert line.startswith(f'{mcap.name} ends without the mcap footer') and 'bytes after' in line
+
+
+def test_train_reads_a_cut_driver_bag_and_prints_what_was_lost(tmp_path, capsys):
+    bag = driver_bag(tmp_path / 'px4', n=50000, storage='mcap')
+    (mcap,) = bag.glob('*.mcap')
+    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size * 3 // 4])
+    mcap.rename(bag / 'px4_0.mcap')
+    (bag / 'metadata.yaml').unlink()
+    args = [str(bag), '--imu-topic', '/fmu/out/sensor_gyro', '--temperature-topic',
+            '/mip/sensor/temperature_statistics', '--features', 'dT', '--kind', 'poly',
+            '--no-accel', '--no-progress', '--out', str(tmp_path / 'model.yaml')]
+    opts = [x for k, v in OPTIONS.items() for x in ('--' + k.replace('_', '-'), v)]
+    assert train_main(args + opts) == 0
+    out = capsys.readouterr().out
+    assert f'warning: {bag}: px4_0.mcap ends without the mcap footer' in out
+    assert (tmp_path / 'model.yaml').exists()
+
+
+@pytest.fixture(scope='module')
+def long_mcap(tmp_path_factory):
+    """Return a 50,000-message driver bag on mcap (5 chunks) and its whole read."""
+    tmp = tmp_path_factory.mktemp('long')
+    bag = driver_bag(tmp / 'px4', n=50000, storage='mcap')
+    kw = dict(imu_topic='/fmu/out/sensor_gyro',
+              temperature_topic='/mip/sensor/temperature_statistics')
+    return bag, read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp / 'whole', **kw),
+                         **kw)
+
+
+@pytest.mark.parametrize('share', [0.001, 0.05, 0.19, 0.21, 0.5, 0.77, 0.95, 0.9999])
+def test_an_mcap_cut_anywhere_reads_a_prefix_or_is_one_line(tmp_path, long_mcap, share):
+    bag, whole = long_mcap
+    data = next(bag.glob('*.mcap')).read_bytes()
+    cut = tmp_path / 'cut'
+    cut.mkdir()
+    size = int(share * len(data))          # 5 chunks of 1 MiB: the first ends near 0.2
+    (cut / 'cut_0.mcap').write_bytes(data[:size])
+    warned = []
+    try:
+        out = normalize_bag(cut, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
+                            temperature_topic='/mip/sensor/temperature_statistics',
+                            out=tmp_path / 'read', warn=warned.append)
+    except DatasetError as err:
+        # Before the first whole chunk nothing can be read: one line, nothing written.
+        assert 'before its first whole chunk' in str(err) and '\n' not in str(err)
+        assert share < 0.2 and not (tmp_path / 'read').exists()
+        return
+    got = read_bag(out, imu_topic='/fmu/out/sensor_gyro',
+                   temperature_topic='/mip/sensor/temperature_statistics')
+    assert got.gyro.tobytes() == whole.gyro[:len(got.gyro)].tobytes()
+    assert got.temp_c.tobytes() == whole.temp_c[:len(got.temp_c)].tobytes()
+    (line,) = warned
+    lost = int(re.search(r'the (\d+) bytes after it are lost', line)[1])
+    assert share > 0.2 and 0 < lost < size and len(got.gyro) <= len(whole.gyro)  # summary
+
+
+def test_a_header_less_reading_of_a_cut_mcap_takes_the_imu_stamp_before_it(tmp_path):
+    # The columnar read keeps rosbags' order between the topics: a Float32 reading is stamped
+    # with the last IMU message logged before it, as on the whole file.
+    bag = tmp_path / 'float'
+    store = driver_typestore()
+    Gyro, F32 = store.types[GYRO_TYPE], store.types['std_msgs/msg/Float32']
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        gc = writer.add_connection('/gyro', GYRO_TYPE, typestore=store)
+        tc = writer.add_connection('/temp', 'std_msgs/msg/Float32', typestore=store)
+        for k in range(30000):
+            stamp = T0_US + 10_000 * k
+            if k % 7 == 3:
+                writer.write(tc, stamp * 1000 - 1, store.serialize_cdr(
+                    F32(np.float32(20 + k * 1e-3)), 'std_msgs/msg/Float32'))
+            msg = Gyro(stamp, stamp, 1, np.float32(0), np.float32(0), np.float32(0),
+                       np.float32(40.0), 0, np.zeros(3, dtype=np.uint8), 1)
+            writer.write(gc, stamp * 1000, store.serialize_cdr(msg, GYRO_TYPE))
+    options = DriverInputs(imu_type=GYRO_TYPE, angular_velocity_field='',
+                           stamp_field='timestamp', input_frame='frd')
+    kw = dict(imu_topic='/gyro', temperature_topic='/temp')
+    whole = read_bag(normalize_bag(bag, options, out=tmp_path / 'a', **kw), **kw)
+    (mcap,) = bag.glob('*.mcap')
+    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size * 2 // 3])
+    mcap.rename(bag / 'float_0.mcap')
+    (bag / 'metadata.yaml').unlink()
+    warned = []
+    got = read_bag(normalize_bag(bag, options, out=tmp_path / 'b', warn=warned.append, **kw),
+                   **kw)
+    m = len(got.temp_t)
+    assert 100 < m < len(whole.temp_t) and len(warned) == 1
+    assert got.temp_t.tobytes() == whole.temp_t[:m].tobytes()
+    assert got.temp_c.tobytes() == whole.temp_c[:m].tobytes()
+    # Each reading is stamped with the IMU message before it (3, 10, 17, ... minus one).
+    np.testing.assert_array_equal(np.round((got.temp_t - whole.imu_t[0]) * 100),
+                                  2 + 7 * np.arange(m))
+
+
+def test_an_mcap_file_cut_in_a_listed_bag_is_one_line_naming_it_and_mcap_recover(tmp_path):
+    # metadata.yaml lists what the closed bag held: the read by field has no loss policy.
     bag = driver_bag(tmp_path / 'px4', n=2000, storage='mcap')
     (mcap,) = bag.glob('*.mcap')
     mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size // 2])
+    with pytest.raises(DatasetError) as err:
+        normalize_bag(bag, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
+                      temperature_topic='/mip/sensor/temperature_statistics',
+                      out=tmp_path / 'read')
+    text = str(err.value)
+    assert text.startswith(f"cannot read bag '{bag}'") and '\n' not in text
+    assert f'{mcap.name} ends without the mcap footer' in text and '`mcap recover`' in text
+    assert not (tmp_path / 'read').exists()
+
+
+def test_an_mcap_file_damaged_in_its_middle_is_one_line_naming_it(tmp_path):
+    # Cut off is read; bytes that are no records before the end are refused, as before.
+    bag = driver_bag(tmp_path / 'px4', n=50000, storage='mcap')
+    (mcap,) = bag.glob('*.mcap')
+    data = bytearray(mcap.read_bytes()[:mcap.stat().st_size * 3 // 4])
+    data[len(data) // 3:len(data) // 3 + 64] = b'\xff' * 64
+    mcap.unlink()
+    (mcap := bag / 'px4_0.mcap').write_bytes(bytes(data))
+    (bag / 'metadata.yaml').unlink()
     with pytest.raises(DatasetError) as err:
         normalize_bag(bag, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
                       temperature_topic='/mip/sensor/temperature_statistics',
