@@ -132,7 +132,8 @@ def comma_floats(text: str) -> list[float]:
         return []
 
 
-def add_bag_options(parser: argparse.ArgumentParser) -> None:
+def add_bag_options(parser: argparse.ArgumentParser, *, driver: bool = False,
+                    sessions: bool = False) -> None:
     """
     Add the options every bag-reading command shares.
 
@@ -145,6 +146,10 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
     ----------
     parser : argparse.ArgumentParser
         The command's parser.
+    driver : bool
+        Also add the driver message options (:func:`add_driver_options`).
+    sessions : bool
+        Also add the session options (:func:`add_session_options`).
 
     """
     g = parser.add_argument_group('bag topics and reference rate')
@@ -181,6 +186,10 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
                         'ArduPilot BARO.Temp), or TOPIC.FIELD / MSG.Field (another thermometer '
                         'of the board); a proxy lags the die, so training adds the thermal '
                         'state (lag) with --features auto (default: %(default)s)')
+    if driver:
+        add_driver_options(parser)
+    if sessions:
+        add_session_options(parser)
 
 
 def add_session_options(parser: argparse.ArgumentParser) -> None:

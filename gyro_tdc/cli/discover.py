@@ -30,9 +30,9 @@ from typing import Optional, Sequence
 
 from gyro_tdc.base import atomic_json
 from gyro_tdc.cli import PROG
-from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser, bag_options,
-                                 command_line, effect_listing, finite_float, positive_float,
-                                 positive_int, probability, progress_bar, run_command, UsageError)
+from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
+                                 effect_listing, finite_float, positive_float, positive_int,
+                                 probability, progress_bar, run_command, UsageError)
 from gyro_tdc.data import load_runs, split_sessions
 from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, constant_gyro_axes, constant_note,
@@ -78,8 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='gyro, or accel: search the accelerometer offset on the still data (one '
                         'offset per bag and orientation; candidates among '
                         f'{", ".join(ACCEL_EFFECTS)}; figures in mg) (default: %(default)s)')
-    add_bag_options(p)
-    add_session_options(p)
+    add_bag_options(p, sessions=True)
     return p
 
 

@@ -28,9 +28,9 @@ import math
 from typing import Iterator, Optional, Sequence
 
 from gyro_tdc.cli import PROG
-from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
-                                 ArgumentParser, bag_options, comma_floats, driver_bags,
-                                 non_negative_float, progress_bar, run_command, UsageError)
+from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, comma_floats,
+                                 driver_bags, non_negative_float, progress_bar, run_command,
+                                 UsageError)
 from gyro_tdc.data import find_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                format_still, imu_mismatch, load_models, model_description,
@@ -84,9 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--export', metavar='DIR', help='write a CSV per bag here: time, temperature, '
                    'raw, reference and compensated rates (rad/s) of the samples scored (of a '
                    'flight log: its still stretches)')
-    add_bag_options(p)
-    add_driver_options(p)
-    add_session_options(p)
+    add_bag_options(p, driver=True, sessions=True)
     return p
 
 

@@ -29,10 +29,9 @@ from typing import Optional, Sequence
 
 from gyro_tdc.base import atomic_json, DEG_PER_RAD, plain, start_imports
 from gyro_tdc.cli import PROG
-from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
-                                 ArgumentParser, bag_options, command_line, driver_bags,
-                                 effect_listing, finite_float, positive_float, positive_int,
-                                 run_command)
+from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
+                                 driver_bags, effect_listing, finite_float, positive_float,
+                                 positive_int, run_command)
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import format_coverage, format_sessions, format_training
 from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions, TrainResult
@@ -100,9 +99,7 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
                    help='do not read the accelerometer nor fit its part (default: fit the '
                         "accelerometer offset's change with temperature on still data when "
                         'the bags have accelerometer data)')
-    add_bag_options(p)
-    add_driver_options(p)
-    add_session_options(p)
+    add_bag_options(p, driver=True, sessions=True)
 
 
 def train_options(args: argparse.Namespace, **more: object) -> TrainOptions:

@@ -426,7 +426,6 @@ class StreamingCompensator:
         self.features = StreamingFeatures(model.features, t0=model.t0_c,
                                           params=model.effect_params, state=True)
         self._coef = model.coefficients
-        self._mean, self._std, self._centers = model.input_mean, model.input_std, model.centers
         self._inv2w2 = 1.0 / (2.0 * model.widths ** 2)
         self._lo, self._hi = model.temp_range_c
         self.offset = np.zeros(3)
@@ -476,8 +475,8 @@ class StreamingCompensator:
         if not self.in_range:
             self.range_distance_c = s - min(max(s, self._lo), self._hi)
             s, reach = split(s, self._lo, self._hi, self.policy, self.max_extrapolation_c)
-        xn = (self.features.update(t, temp, s) - self._mean) / self._std
-        phi = np.exp(-((xn - self._centers) ** 2).sum(axis=1) * self._inv2w2)
+        xn = (self.features.update(t, temp, s) - self.model.input_mean) / self.model.input_std
+        phi = np.exp(-((xn - self.model.centers) ** 2).sum(axis=1) * self._inv2w2)
         row = np.concatenate(([1.0], xn, phi))
         d = s - self.model.t0_c
         b = row @ self._coef + self.offset

@@ -29,11 +29,11 @@ from typing import Any, Mapping
 
 from gyro_tdc.base import (atomic_write, FieldChecker, MAX_CENTERS, plain, read_yaml, shown,
                            YamlLimits)
-from gyro_tdc.errors import FeatureError, ModelFileError
+from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model.compensation import CompensationModel, FORMAT_VERSION, KINDS
 from gyro_tdc.model.effects import input_ids, normalise_ids, resolve_params
 from gyro_tdc.model.thermal_state import ThermalState
-from gyro_tdc.model.validate import check_model
+from gyro_tdc.model.validate import check_model, reworded
 import numpy as np
 import yaml
 
@@ -87,11 +87,9 @@ def _accel_from_dict(d: Mapping) -> CompensationModel | None:
                              'accelerometer part')
     sub = dict(sec, format_version=FORMAT_VERSION, thermal=d.get('thermal'), t0_c=d.get('t0_c'),
                sensor=d.get('sensor'), scale=[0.0, 0.0, 0.0])
-    try:
+    with reworded('field `accel`', ModelFileError):
         sub['residual_var_rad2_s2'] = _get(sub, 'residual_var_m2_s4')
         return _model_from_dict(sub)
-    except ModelFileError as exc:
-        raise ModelFileError(f'field `accel`: {exc}') from None
 
 
 #: The shared field checks (gyro_tdc.base.fields), worded for a model file.
@@ -148,11 +146,9 @@ def model_from_dict(d: Any) -> CompensationModel:
         note = '' if type(version) is int else f' (a {type(version).__name__}, not an integer)'
         raise ModelFileError(f'field `format_version` must be {FORMAT_VERSION} (the format '
                              f'this gyro_tdc reads), got {version!r}{note}')
-    try:
+    with reworded(f'format_version {version} model', ModelFileError):
         model = _model_from_dict(d)
         check_model(model)
-    except ModelFileError as exc:
-        raise ModelFileError(f'format_version {version} model: {exc}') from None
     return model
 
 
@@ -170,18 +166,14 @@ def _model_from_dict(d: Mapping) -> CompensationModel:
     feats = d.get('features')
     if not isinstance(feats, list) or not all(isinstance(f, str) for f in feats):
         raise ModelFileError(f'field `features` must be a list of effect ids, got {feats!r}')
-    try:
+    with reworded('field `features`/`effect_params`'):
         ids = normalise_ids(feats)
         params = resolve_params(ids, _mapping(d, 'effect_params', required=False))
-    except FeatureError as exc:
-        raise ModelFileError(f'field `features`/`effect_params`: {exc}') from None
     if list(ids) != feats:
         raise ModelFileError(f'field `features` must list each id once in catalog order '
                              f'({", ".join(ids)}), got {feats!r}')
-    try:
+    with reworded('field `thermal`'):
         thermal = ThermalState.from_dict(_mapping(d, 'thermal'))
-    except FeatureError as exc:
-        raise ModelFileError(f'field `thermal`: {exc}') from None
     f = len(input_ids(ids, state=True))
     rows = d.get('centers')
     if isinstance(rows, list) and len(rows) > MAX_CENTERS:
@@ -207,15 +199,13 @@ def _model_from_dict(d: Mapping) -> CompensationModel:
     frame_id, sensor_id = sensor.get('frame_id', 'imu_link'), sensor.get('sensor_id', '')
     if not isinstance(frame_id, str) or not isinstance(sensor_id, str):
         raise ModelFileError('field `sensor` must hold string `frame_id` and `sensor_id`')
-    try:
+    with reworded('fields `thermal`/`features`/`effect_params`'):
         model = CompensationModel.network(
             kind, ids, params, _CHK.number(_get(d, 't0_c'), 't0_c', what='a finite number'),
             (mean, std, centers, widths), np.vstack([intercept[None, :], linear, weights]),
             scale=scale, temp_range_c=rng_, residual_var=resid, frame_id=frame_id,
             sensor_id=sensor_id, metrics=_mapping(d, 'training', required=False),
             created=_mapping(d, 'created', required=False), thermal=thermal, accel=accel)
-    except FeatureError as exc:
-        raise ModelFileError(f'fields `thermal`/`features`/`effect_params`: {exc}') from None
     if mid != model.model_id:
         raise ModelFileError(f'field `model_id` {mid!r} does not match the parameters '
                              f'({model.model_id}): the file was edited or corrupted')
@@ -244,7 +234,5 @@ def load_model(path: str | os.PathLike) -> CompensationModel:
     """Read and validate a model file (ModelFileError: the file and what is wrong, one line)."""
     path = Path(path)
     data = read_yaml(path, _LIMITS, error=ModelFileError)
-    try:
+    with reworded(str(path), ModelFileError):
         return model_from_dict(data)
-    except ModelFileError as exc:
-        raise ModelFileError(f'{path}: {exc}') from None

@@ -187,7 +187,6 @@ class StreamingThermalState:
 
     def __init__(self, thermal: ThermalState) -> None:
         self.thermal = thermal
-        self._taus = thermal.tau_s
         self.reset()
 
     def reset(self) -> None:
@@ -203,13 +202,13 @@ class StreamingThermalState:
         """
         if self._t_prev is None:
             self._t_first = self._t_prev = t
-            self._y = [temp] * len(self._taus)
+            self._y = [temp] * len(self.thermal.tau_s)
             self.value = temp
             return temp
         dt_s = max(t - self._t_prev, 0.0)
         self._t_prev = max(t, self._t_prev)
         u = temp
-        for i, tau in enumerate(self._taus):      # cascaded nodes
+        for i, tau in enumerate(self.thermal.tau_s):      # cascaded nodes
             u = self._y[i] = lag_step(self._y[i], u, dt_s, tau)
         self.value = u
         return u

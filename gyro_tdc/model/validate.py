@@ -22,12 +22,13 @@ A model file can pass every shape and finiteness check and still compute Inf, Na
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 import itertools
 from typing import Any, Iterator, Sequence
 
 from gyro_tdc.base import (MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_TEMP_RATE_C_S,
                            TEMP_PLAUSIBLE_C)
-from gyro_tdc.errors import ModelFileError
+from gyro_tdc.errors import FeatureError, ModelFileError
 from gyro_tdc.model.compensation import CompensationModel, rbf_design
 from gyro_tdc.model.effects import EFFECTS
 from gyro_tdc.model.out_of_range import MAX_EXTRAPOLATION_C, Tangent
@@ -35,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['GAIN_BOUNDS', 'MAX_PARAM', 'MIN_INPUT_STD', 'MIN_WIDTH', 'TAU_BOUNDS_S',
-           'check_accel', 'check_model', 'drift_grid']
+           'check_accel', 'check_model', 'drift_grid', 'reworded']
 
 #: Smallest input standard deviation (in the feature's own unit): 1/std scales every input.
 MIN_INPUT_STD = 1e-9
@@ -81,13 +82,19 @@ def check_model(model: CompensationModel) -> None:
             check_accel(model.accel)
 
 
+@contextmanager
+def reworded(prefix: str, error: type[Exception] = FeatureError) -> Iterator[None]:
+    """Re-raise an ``error`` raised inside as one ModelFileError line ``PREFIX: MESSAGE``."""
+    try:
+        yield
+    except error as exc:
+        raise ModelFileError(f'{prefix}: {exc}') from None
+
+
 def check_accel(part: CompensationModel) -> None:
     """Check an accelerometer part as :func:`check_model` does (its line names `accel`)."""
-    with np.errstate(all='ignore'):
-        try:
-            _check_part(part, MAX_ACCEL_DRIFT_MPS2, 'm/s^2', 'residual_var_m2_s4')
-        except ModelFileError as exc:
-            raise ModelFileError(f'field `accel`: {exc}') from None
+    with np.errstate(all='ignore'), reworded('field `accel`', ModelFileError):
+        _check_part(part, MAX_ACCEL_DRIFT_MPS2, 'm/s^2', 'residual_var_m2_s4')
 
 
 def _check_part(m: CompensationModel, bound: float, unit: str, resid: str) -> None:

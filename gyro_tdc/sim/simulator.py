@@ -282,8 +282,7 @@ def _thermometer(th: ThermometerSpec, thermal: ThermalHistory, duration: float,
     temp_c = thermal.at('thermometer_c', temp_t) + th.offset_c
     if th.noise_c > 0.0:
         temp_c += rng.standard_normal(temp_t.size) * th.noise_c
-    if th.resolution_c > 0.0:
-        temp_c = np.round(temp_c / th.resolution_c) * th.resolution_c
+    quantise(temp_c, th.resolution_c)
     return temp_t, temp_c, th.noise_c ** 2 + th.resolution_c ** 2 / 12.0
 
 

@@ -23,10 +23,10 @@ reference topic. Every field: ``doc/internals/sim.md``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import asdict, dataclass
 import math
 
-from gyro_tdc.base import RAD_PER_DEG
+from gyro_tdc.base import plain, RAD_PER_DEG
 from gyro_tdc.model import first_order_lag
 from gyro_tdc.sim.chamber import Profile
 from gyro_tdc.sim.specs import section_fields, spec_field
@@ -77,8 +77,7 @@ class VehicleSpec:
 
     def to_dict(self) -> dict:
         """Return the section as plain YAML-safe types."""
-        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
-                for f in fields(self)}
+        return plain(asdict(self))
 
 
 #: Each field of the ``vehicle:`` section as (kind, default), and the defaults alone.
