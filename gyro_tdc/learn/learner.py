@@ -402,29 +402,30 @@ class Learner:
             return False
         if not st.learned:
             st.keep_from(self.still.last_refused(st.rows, thresholds)[0] + 1)
-            if not st.rows or not self._long_enough(st):
+            if not st.rows or not self._begin(st):
                 return False
-            self._new_stretch(st.rows[0].t0)
         return self._learn(st.rows)
 
-    def _long_enough(self, st: OpenStretch) -> bool:
-        """Return whether a stretch not learned yet is learned: the trainers' rule."""
-        return long_enough(st.n, st.span(), st.mean_se, self.config.window_s,
-                           self.config.min_still_s)
+    def _begin(self, st: OpenStretch) -> bool:
+        """
+        Return whether a stretch not learned yet is learned (the trainers' rule).
 
-    def _new_stretch(self, t0: float) -> None:
-        """Count a stretch that is learned from now on; its entries form a new group."""
+        One that is counts from now on; its entries form a new group.
+        """
+        if not long_enough(st.n, st.span(), st.mean_se, self.config.window_s,
+                           self.config.min_still_s):
+            return False
         self.stretches += 1
         self.segment = max(self.segment + 1, self.stretches)
-        self.segment_t0 = t0
+        self.segment_t0 = st.rows[0].t0
+        return True
 
     def _commit(self) -> bool:
         """Learn a long stretch's windows so far (every ``commit_s``) while it goes on."""
         st = self._stretch
         if not st.learned:
-            if not self._long_enough(st):
+            if not self._begin(st):
                 return False
-            self._new_stretch(st.rows[0].t0)
             st.learned = True
         elif st.rows[-1].t1 - st.rows[0].t0 < self.config.commit_s:
             return False
@@ -531,9 +532,10 @@ class Learner:
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return False
         anchor = since if self.config.offset_s > 0 or since == -math.inf else None
-        cand.created.update({'offset_until': until, POWER_UP_KEY: twin.intercept.tolist()})
-        # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
-        cand.created['gyro_floor'] = [float(v) for v in self.still.gyro_floor]
+        # gyro_floor: the noise of the samples it is handed (the core's re-anchoring prior at a
+        # new one).
+        cand.created.update({'offset_until': until, POWER_UP_KEY: twin.intercept.tolist(),
+                             'gyro_floor': [float(v) for v in self.still.gyro_floor]})
         new, old, swap = compare(cand, self.model, rows, self.thermal, anchor, floor)
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old, 'swapped': swap}
         if not swap:
