@@ -41,6 +41,7 @@ from gyro_tdc.learn.records import (Entry, held_out_line, keep_power_up, LearnCo
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.runtime import power_up, POWER_UP_KEY
+from gyro_tdc.runtime.handoff import BLOCK_FIELDS, NO_ACCEL
 from gyro_tdc.signal import (break_why, hold_readings, long_enough, SessionTracker, StillWindows,
                              Window)
 import numpy as np
@@ -48,15 +49,12 @@ from numpy.typing import NDArray
 
 __all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig', 'learned_model']
 
-#: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
-SAMPLE = 7
 #: Entries a bin keeps (its newest).
 BIN_ENTRIES = 8
 #: Recent stretches the prediction check and the offset look at ...
 CHECK_STRETCHES = 3
 #: ... and their windows kept, newest first (a day of 10 s windows, what learn_file keeps).
 CHECK_ROWS = RECENT_ROWS
-_NO_ACCEL = (math.nan,) * 3
 
 
 class Learner:
@@ -74,8 +72,9 @@ class Learner:
         self.thermal: ThermalState | None = None if prior is None else prior.thermal
         #: The thermal state after the last sample: (stamp, one value per node), or None.
         self.thermal_state: tuple[float, list[float]] | None = None
-        #: One flat float array (no object per sample), :data:`SAMPLE` floats a sample: the
-        #: stamp, the raw rate and the acceleration (NaN: none).
+        #: One flat float array (no object per sample), the core's hand-off layout
+        #: (:data:`~gyro_tdc.runtime.handoff.BLOCK_FIELDS` floats a sample: the stamp, the raw
+        #: rate and the acceleration, NaN: none).
         self.buf = array('d')
         self.temps: list[tuple[float, float]] = []
         #: The one streaming still test (windows on the grid of the first stamp; a window of
@@ -197,7 +196,7 @@ class Learner:
     def observe(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> None:
         """Record one raw IMU sample (the only per-message work: one ``extend``)."""
-        ax, ay, az = _NO_ACCEL if accel is None else accel
+        ax, ay, az = NO_ACCEL if accel is None else accel
         self.buf.extend((t, wx, wy, wz, ax, ay, az))
 
     def add_temperature(self, t: float, temp_c: float) -> None:
@@ -234,7 +233,7 @@ class Learner:
 
     def _waiting(self) -> bool:
         """Return whether the window in progress goes on (no sample beyond it, no restart)."""
-        wend, t = self.still.window_end, self.buf[-SAMPLE]
+        wend, t = self.still.window_end, self.buf[-BLOCK_FIELDS]
         return (wend is not None and t < wend
                 and (self.last_t is None or t >= self.last_t - RESTART_BACK_S))
 
@@ -270,8 +269,8 @@ class Learner:
             return False                  # the window in progress has not ended: wait
         # The core holds this array's extend method: empty it in place (call this on the
         # thread that compensates, as the node's timer does).
-        m = len(buf) // SAMPLE * SAMPLE
-        x = np.array(buf[:m], dtype=np.float64).reshape(-1, SAMPLE)
+        m = len(buf) // BLOCK_FIELDS * BLOCK_FIELDS
+        x = np.array(buf[:m], dtype=np.float64).reshape(-1, BLOCK_FIELDS)
         del buf[:m]
         ok = np.isfinite(x[:, 0])
         t, w = x[ok, 0], x[ok, 1:4]
