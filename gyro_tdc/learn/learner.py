@@ -41,6 +41,7 @@ from gyro_tdc.learn.records import (Entry, held_out_line, keep_power_up, LearnCo
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.runtime import power_up, POWER_UP_KEY
+from gyro_tdc.runtime.handoff import BLOCK_FIELDS, NO_ACCEL
 from gyro_tdc.signal import (break_why, hold_readings, long_enough, SessionTracker, StillWindows,
                              Window)
 import numpy as np
@@ -48,15 +49,12 @@ from numpy.typing import NDArray
 
 __all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig', 'learned_model']
 
-#: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
-SAMPLE = 7
 #: Entries a bin keeps (its newest).
 BIN_ENTRIES = 8
 #: Recent stretches the prediction check and the offset look at ...
 CHECK_STRETCHES = 3
 #: ... and their windows kept, newest first (a day of 10 s windows, what learn_file keeps).
 CHECK_ROWS = RECENT_ROWS
-_NO_ACCEL = (math.nan,) * 3
 
 
 class Learner:
@@ -74,8 +72,9 @@ class Learner:
         self.thermal: ThermalState | None = None if prior is None else prior.thermal
         #: The thermal state after the last sample: (stamp, one value per node), or None.
         self.thermal_state: tuple[float, list[float]] | None = None
-        #: One flat float array (no object per sample), :data:`SAMPLE` floats a sample: the
-        #: stamp, the raw rate and the acceleration (NaN: none).
+        #: One flat float array (no object per sample), the core's hand-off layout
+        #: (:data:`~gyro_tdc.runtime.handoff.BLOCK_FIELDS` floats a sample: the stamp, the raw
+        #: rate and the acceleration, NaN: none).
         self.buf = array('d')
         self.temps: list[tuple[float, float]] = []
         #: The one streaming still test (windows on the grid of the first stamp; a window of
@@ -197,7 +196,7 @@ class Learner:
     def observe(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> None:
         """Record one raw IMU sample (the only per-message work: one ``extend``)."""
-        ax, ay, az = _NO_ACCEL if accel is None else accel
+        ax, ay, az = NO_ACCEL if accel is None else accel
         self.buf.extend((t, wx, wy, wz, ax, ay, az))
 
     def add_temperature(self, t: float, temp_c: float) -> None:
@@ -234,7 +233,7 @@ class Learner:
 
     def _waiting(self) -> bool:
         """Return whether the window in progress goes on (no sample beyond it, no restart)."""
-        wend, t = self.still.window_end, self.buf[-SAMPLE]
+        wend, t = self.still.window_end, self.buf[-BLOCK_FIELDS]
         return (wend is not None and t < wend
                 and (self.last_t is None or t >= self.last_t - RESTART_BACK_S))
 
@@ -270,8 +269,8 @@ class Learner:
             return False                  # the window in progress has not ended: wait
         # The core holds this array's extend method: empty it in place (call this on the
         # thread that compensates, as the node's timer does).
-        m = len(buf) // SAMPLE * SAMPLE
-        x = np.array(buf[:m], dtype=np.float64).reshape(-1, SAMPLE)
+        m = len(buf) // BLOCK_FIELDS * BLOCK_FIELDS
+        x = np.array(buf[:m], dtype=np.float64).reshape(-1, BLOCK_FIELDS)
         del buf[:m]
         ok = np.isfinite(x[:, 0])
         t, w = x[ok, 0], x[ok, 1:4]
@@ -402,29 +401,30 @@ class Learner:
             return False
         if not st.learned:
             st.keep_from(self.still.last_refused(st.rows, thresholds)[0] + 1)
-            if not st.rows or not self._long_enough(st):
+            if not st.rows or not self._begin(st):
                 return False
-            self._new_stretch(st.rows[0].t0)
         return self._learn(st.rows)
 
-    def _long_enough(self, st: OpenStretch) -> bool:
-        """Return whether a stretch not learned yet is learned: the trainers' rule."""
-        return long_enough(st.n, st.span(), st.mean_se, self.config.window_s,
-                           self.config.min_still_s)
+    def _begin(self, st: OpenStretch) -> bool:
+        """
+        Return whether a stretch not learned yet is learned (the trainers' rule).
 
-    def _new_stretch(self, t0: float) -> None:
-        """Count a stretch that is learned from now on; its entries form a new group."""
+        One that is counts from now on; its entries form a new group.
+        """
+        if not long_enough(st.n, st.span(), st.mean_se, self.config.window_s,
+                           self.config.min_still_s):
+            return False
         self.stretches += 1
         self.segment = max(self.segment + 1, self.stretches)
-        self.segment_t0 = t0
+        self.segment_t0 = st.rows[0].t0
+        return True
 
     def _commit(self) -> bool:
         """Learn a long stretch's windows so far (every ``commit_s``) while it goes on."""
         st = self._stretch
         if not st.learned:
-            if not self._long_enough(st):
+            if not self._begin(st):
                 return False
-            self._new_stretch(st.rows[0].t0)
             st.learned = True
         elif st.rows[-1].t1 - st.rows[0].t0 < self.config.commit_s:
             return False
@@ -531,9 +531,10 @@ class Learner:
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return False
         anchor = since if self.config.offset_s > 0 or since == -math.inf else None
-        cand.created.update({'offset_until': until, POWER_UP_KEY: twin.intercept.tolist()})
-        # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
-        cand.created['gyro_floor'] = [float(v) for v in self.still.gyro_floor]
+        # gyro_floor: the noise of the samples it is handed (the core's re-anchoring prior at a
+        # new one).
+        cand.created.update({'offset_until': until, POWER_UP_KEY: twin.intercept.tolist(),
+                             'gyro_floor': [float(v) for v in self.still.gyro_floor]})
         new, old, swap = compare(cand, self.model, rows, self.thermal, anchor, floor)
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old, 'swapped': swap}
         if not swap:

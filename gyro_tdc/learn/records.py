@@ -194,13 +194,9 @@ def remember(recent: list[RecentStretch], new: RecentStretch, stretches: int, ro
     else:
         recent.append(new)
     del recent[:-stretches]
-    excess = sum(len(r.rows) for r in recent) - rows
-    while excess > 0:
-        first = recent[0].rows
-        cut = min(excess, len(first))
-        del first[:cut]
-        excess -= cut
-        if not first:
+    while (excess := sum(len(r.rows) for r in recent) - rows) > 0:
+        del recent[0].rows[:excess]
+        if not recent[0].rows:
             del recent[0]
 
 

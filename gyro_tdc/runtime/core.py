@@ -236,20 +236,19 @@ class CompensatorCore:
         """
         Swap in new policies between two messages (call it on the thread that compensates).
 
-        What was built from the old ``policy`` is rebuilt: the model in use and the learned
-        models waiting are prepared again when a field of ``PREPARED_BY`` changed (the same
-        model keeps its start-up shift); the stillness detector by
-        :meth:`Reanchoring.rethreshold`.
+        What was built from the old ``policy`` is rebuilt: the model in use is prepared again
+        when a field of ``PREPARED_BY`` changed (the same model keeps its start-up shift), the
+        learned models waiting at their install (:meth:`install`: :func:`prepared_for`); the
+        stillness detector by :meth:`Reanchoring.rethreshold`.
         """
         old, self.policy = self.policy, policy
-        self.reanchoring.rethreshold(old, policy, reanchor_var(self.slot.model, self.learning),
+        slot = self.slot
+        self.reanchoring.rethreshold(old, policy, reanchor_var(slot.model, self.learning),
                                      self.stream.t if self.stream.moving else None)
-        if any(getattr(old, f) != getattr(policy, f) for f in PREPARED_BY):
-            gate = self.learning
-            gate.queue = deque((due, prepare(p.model, policy, p.priming)) for due, p in gate.queue)
-            if self.slot.model is not None:
-                self.install(prepare(self.slot.model, policy, self.priming(self.slot.model)),
-                             learned=self.slot.learned)
+        if slot.model is not None and any(getattr(old, f) != getattr(policy, f)
+                                          for f in PREPARED_BY):
+            self.install(prepare(slot.model, policy, self.priming(slot.model)),
+                         learned=slot.learned)
         self._update_needs()
 
     # -- inputs -----------------------------------------------------------------------
@@ -504,24 +503,15 @@ class CompensatorCore:
             gate = self.learning
             a.restart(slot, reanchor_var(slot.model, gate), gate.extend is not None)
             self._update_needs()
-        if (up := self._power_up_model(waiting)) is not None:
-            self.learning.installs += 1
-            self.install(up, learned=True, older_clock=True)
-
-    def _power_up_model(self, waiting: PreparedModel | None) -> PreparedModel | None:
-        """
-        Return the learned model a new power cycle starts on (None: the one in force).
-
-        The newest learned model (``waiting`` on the old clock, else the one installed) with
-        the intercept its learner gave a power cycle whose offset is not known yet
-        (:func:`~gyro_tdc.runtime.handoff.power_up`): not the last cycle's offset.
-        """
-        slot = self.slot
+        # The new power cycle starts on the newest learned model (``waiting`` on the old clock,
+        # else the one installed; none: the one in force) with the intercept its learner gave
+        # a power cycle whose offset is not known yet (power_up): not the last cycle's offset.
         model = waiting.model if waiting is not None else slot.model if slot.learned else None
-        if model is None or POWER_UP_KEY not in model.created:
-            return waiting
-        model = power_up(model)
-        return prepare(model, self.policy, self.priming(model))
+        if model is not None and POWER_UP_KEY in model.created:
+            waiting = prepare(up := power_up(model), self.policy, self.priming(up))
+        if waiting is not None:
+            self.learning.installs += 1
+            self.install(waiting, learned=True, older_clock=True)
 
     def temperature_age(self) -> float | None:
         """Return the last IMU stamp minus the newest thermometer stamp, s (None if unknown)."""

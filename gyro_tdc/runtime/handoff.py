@@ -31,11 +31,12 @@ from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime.priming import PreparedModel
 import numpy as np
 
-__all__ = ['BLOCK_FIELDS', 'hand_off', 'LearningGate', 'power_up', 'POWER_UP_KEY']
+__all__ = ['BLOCK_FIELDS', 'hand_off', 'LearningGate', 'NO_ACCEL', 'power_up', 'POWER_UP_KEY']
 
-#: Floats per sample handed to the learner: stamp, rate (3), specific force (3; NaN: none).
+#: Floats per sample handed to the learner: stamp, rate (3), specific force (3; NaN: none) ...
 BLOCK_FIELDS = 7
-_NAN3 = (math.nan, math.nan, math.nan)
+#: ... the force of a sample without one.
+NO_ACCEL = (math.nan, math.nan, math.nan)
 #: A learned model's ``created`` key: the intercept (rad/s, 3 floats) its learner gives a new
 #: power cycle whose offset is not known yet.
 POWER_UP_KEY = 'power_up_intercept'
@@ -151,7 +152,7 @@ class LearningGate:
         A block is closed at a pause in the stamps longer than 1.5 periods (a burst ends, a
         gap), so no mean spans one. The per-sample work is one ``extend`` of the block.
         """
-        sample = (t, wx, wy, wz, *(_NAN3 if accel is None else accel))  # Learner.observe's
+        sample = (t, wx, wy, wz, *(NO_ACCEL if accel is None else accel))
         if t >= self.next:                    # a hand-off due, by stamp
             self.next = t + 0.999 * self.period
             if self.block and last is not None and t - last > 1.5 * self.period:

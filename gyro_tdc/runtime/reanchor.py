@@ -50,7 +50,6 @@ from numpy.typing import NDArray
 __all__ = ['gated_shift', 'PROVISIONAL', 'REANCHOR_KEY', 'reanchor_shift', 'shift_gate',
            'StillnessDetector']
 
-_INF3 = (math.inf, math.inf, math.inf)
 #: A still run resumed after a pause keeps its windows before it only where their mean and
 #: the first window's after it agree within this many combined standard errors on every axis
 #: (else the bias moved in the pause: a board warming after a cold start).
@@ -256,7 +255,7 @@ class StillnessDetector:
         self.fixed_tolerance = float(tolerance or 0.0)
         self.block_s = block_length(self.window)
         self.windows_rejected = 0
-        self.tolerance: Vec3 = (self.fixed_tolerance,) * 3 if self.fixed_tolerance > 0 else _INF3
+        self.tolerance = (self.fixed_tolerance if self.fixed_tolerance > 0 else math.inf,) * 3
         self.noise_prior: Vec3 | None = None
         #: The one streaming still test; re-anchoring windows hold at least two samples.
         self.still = StillWindows(self.window, cut='span', gyro_std=float(gyro_std), min_samples=2,
@@ -434,26 +433,18 @@ class StillnessDetector:
         elif j < 0 and len(run) >= max_windows(self.window, self.window_max):
             reason = 'longest'
         else:                             # a refused window, or the run goes on
-            self.provisional = self._so_far(run, w, total)
+            # The run's shift so far (PROVISIONAL): the axes beyond PROVISIONAL_Z standard
+            # errors, none when no axis is (or the run is empty).
+            if run:
+                a = self._anchor(run, total, w.t1, float(w.temp[-1]), PROVISIONAL)
+                delta = tuple(d if abs(d) > PROVISIONAL_Z * e else 0.0
+                              for d, e in zip(a.delta, a.se))
+                self.provisional = replace(a, delta=delta) if any(delta) else None
             return None
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
         self._run = []
         return self._anchor(run, total, w.t1, float(w.temp[-1]), reason)
-
-    def _so_far(self, run: list[_Window], w: Window, total: BlockStats) -> Anchor | None:
-        """
-        Return the run's shift so far at the end of window ``w`` (:data:`PROVISIONAL`).
-
-        ``total``: the block statistics of ``run``.
-
-        None when the run is empty or no axis is beyond :data:`PROVISIONAL_Z` standard errors.
-        """
-        if not run:
-            return None
-        a = self._anchor(run, total, w.t1, float(w.temp[-1]), PROVISIONAL)
-        delta = tuple(d if abs(d) > PROVISIONAL_Z * e else 0.0 for d, e in zip(a.delta, a.se))
-        return replace(a, delta=delta) if any(delta) else None
 
     def _anchor(self, run: list[_Window], total: BlockStats, t_end: float, temp_c: float,
                 reason: str) -> Anchor:

@@ -38,16 +38,15 @@ from numpy.typing import NDArray
 
 __all__ = ['detector_for', 'Reanchoring', 'reanchor_var', 'STILL_FIELDS', 'StreamState', 'Tally']
 
-#: The Policy fields the stillness detector is built from.
-STILL_FIELDS = ('still_window', 'still_gyro_std', 'still_max_rate', 'still_accel_std',
-                'still_window_max', 'reanchor_tolerance')
+#: The Policy fields the stillness detector is built from: its parameter of each.
+STILL_FIELDS = {'still_window': 'window', 'still_gyro_std': 'gyro_std',
+                'still_max_rate': 'max_rate', 'still_accel_std': 'accel_std',
+                'still_window_max': 'window_max', 'reanchor_tolerance': 'tolerance'}
 
 
 def detector_for(policy: Policy) -> StillnessDetector:
     """Return a stillness detector with ``policy``'s re-anchoring thresholds."""
-    return StillnessDetector(policy.still_window, policy.still_gyro_std, policy.still_max_rate,
-                             policy.still_accel_std, window_max=policy.still_window_max,
-                             tolerance=policy.reanchor_tolerance)
+    return StillnessDetector(**{arg: getattr(policy, f) for f, arg in STILL_FIELDS.items()})
 
 
 @dataclass(slots=True)
