@@ -159,19 +159,19 @@ def rate_hz(t: NDArray[np.float64]) -> float:
 
 def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: str = 'raw',
           features: Sequence[str] = (), bs_raw: NDArray[np.float64] | None = None,
-          rate: float | None = None, allan: bool = True) -> ModelEval:
+          allan: bool = True) -> ModelEval:
     """
     Score one compensated (or raw) rate ``omega`` (N, 3, rad/s) against the run's reference.
 
     BS = mean((omega - omega_ref)^2) per axis in (deg/s)^2 (paper eq. 30), RMS in deg/s,
     BS / ``bs_raw`` (ones when None; NaN without a warning where the raw BS is 0), the
-    Allan deviation of the error at ``rate`` Hz (default from the stamps; empty below 4
+    Allan deviation of the error at the stamps' rate (:func:`rate_hz`; empty below 4
     samples or with ``allan`` False, e.g. held-out samples with gaps) and its readouts;
     ``omega`` is kept. ``label``, ``model`` and ``features`` name what is scored.
     """
     err, bs = omega - run.omega_ref, bias_stability(omega, run.omega_ref)
-    tau, adev = (allan_deviation(err, rate_hz(run.t) if rate is None else rate)
-                 if allan and len(run) >= 4 else (np.zeros(0), np.zeros((0, 3))))
+    tau, adev = (allan_deviation(err, rate_hz(run.t)) if allan and len(run) >= 4
+                 else (np.zeros(0), np.zeros((0, 3))))
     nr = noise_readouts(tau, adev)
     # An axis reading its reference exactly (raw BS 0): no ratio; one a hair off it
     # (a subnormal raw BS) overflows to inf, which the caller flags as constant.
@@ -260,7 +260,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     check_policy(out_of_range)
     const = _constant(run)
     parts = split_sessions([run], sessions, session_gap_s).runs
-    whole, summary, kw = run, None, {'rate': rate_hz(run.t)}
+    whole, summary = run, None
     bounds = np.cumsum([0] + [len(p) for p in parts])
 
     # The still stretches: the still test's gap rule, and each session's end.
@@ -272,8 +272,8 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         return x if still is None else _anchor_first_still(x, spans, bounds)[still]
     if still is not None:
         summary = _still_summary(run, still, bounds, spans)
-        whole, kw, reanchor_s = rows_of(run, still), {'allan': False}, 0.0
-    raw = score(pick(run.omega), whole, **kw)
+        whole, reanchor_s = rows_of(run, still), 0.0
+    raw = score(pick(run.omega), whole, allan=still is None)
     const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
                                            out_of_range=out_of_range,
@@ -283,7 +283,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         m = nm.model
         comp, info = _compensated(nm, parts, reanchor_s, out_of_range, max_extrapolation_c)
         ev = score(pick(comp), whole, label=nm.label, model=nm.name, features=list(m.features),
-                   bs_raw=raw.bs, **kw)
+                   bs_raw=raw.bs, allan=still is None)
         ev.reanchor, ev.accel_bs = info, accel_bs
         ev.constant_axes = [str(a) for a in m.metrics.get('constant_axes', ())]
         ev.p_vs_raw[const] = math.nan       # no signal to score there

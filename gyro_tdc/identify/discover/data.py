@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 
 __all__ = ['ar1', 'bandwidth', 'BlockData', 'COLLINEAR', 'corr', 'DEG', 'excitation', 'gap',
            'hac_pvalue', 'LinearModel', 'make_folds', 'mse', 'ols_hac', 'rel_residual',
-           'unidentifiable', 'weighted_corr', 'wsse']
+           'unidentifiable', 'wsse']
 
 #: Relative norm below which a column is taken as spanned by the others.
 COLLINEAR = 1e-3
@@ -497,12 +497,6 @@ def corr(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     return float(a @ b) / den if den > 0 else 0.0
 
 
-def weighted_corr(a: NDArray[np.float64], b: NDArray[np.float64],
-                  w: NDArray[np.float64]) -> float:
-    """Return the weighted correlation of two (K, 3) contributions, flattened."""
-    return corr(a * np.sqrt(w)[:, None], b * np.sqrt(w)[:, None])
-
-
 class LinearModel:
     """Design matrices, least squares, cross-validation and the HAC test for one effect set."""
 
@@ -558,10 +552,6 @@ class LinearModel:
     def residual(self, coef: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         """Return measured minus simulated (K, 3), rad/s."""
         return self.data.y - self.predict(self.fit() if coef is None else coef)
-
-    def sse(self) -> float:
-        """Return the weighted sum of squared residuals over blocks and axes."""
-        return wsse(self.data, self.residual())
 
     def cv_residual(self, folds: Folds) -> NDArray[np.float64]:
         """

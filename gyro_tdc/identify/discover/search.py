@@ -32,8 +32,7 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import fit_varying
 from gyro_tdc.identify.discover.data import (bandwidth, BlockData, COLLINEAR, corr, DEG,
                                              excitation, gap, hac_pvalue, LinearModel,
-                                             make_folds, mse, rel_residual, unidentifiable,
-                                             weighted_corr, wsse)
+                                             make_folds, mse, rel_residual, unidentifiable, wsse)
 from gyro_tdc.identify.discover.report import residual_adev, residual_maps
 from gyro_tdc.identify.discover.results import CandidateScore, DiscoveryResult, Step
 from gyro_tdc.identify.fit import check_finite, estimate_t0, fit_model, MIN_SPAN_C, span
@@ -55,7 +54,7 @@ _CANDIDATES = tuple(e for e in EFFECTS if e != 'bias')
 _TIMED = frozenset(NONLINEAR_EFFECTS | {e for e in EFFECTS if 'tau_s' in EFFECTS[e].params})
 #: Search bounds of a time constant the catalog gives no bounds for (the dTdt smoothing), s.
 _SMOOTHING_BOUNDS_S = (1.0, 3600.0)
-#: Candidates with time memory, scored beside the static curve too (:func:`_beside_curve`).
+#: Candidates with time memory, scored beside the static curve too (:func:`_score`).
 _MEMORY = tuple(e for e in _CANDIDATES if e not in STATIC_EFFECTS)
 #: The static curve beyond ``dT`` that a time-memory candidate must beat.
 _CURVE = ('dT2', 'dT3')
@@ -92,7 +91,8 @@ def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequ
         params.setdefault(eid, dict(EFFECTS[eid].params))
     for eid in which:
         def sse(tau: float, eid: str = eid) -> float:
-            return LinearModel(data, effects, {**params, eid: {**params[eid], 'tau_s': tau}}).sse()
+            trial = {**params, eid: {**params[eid], 'tau_s': tau}}
+            return wsse(data, LinearModel(data, effects, trial).residual())
 
         params[eid]['tau_s'] = fit_time_constant(sse, _tau_bounds(data, eid), n_grid=14,
                                                  xatol=0.01).tau
@@ -157,22 +157,6 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     return [bandwidth(r[:, a]) for a in range(3)], int(memory)
 
 
-def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params: dict) -> float:
-    """
-    Return the held-out gain of a time-memory candidate beside the static curve, (deg/s)^2.
-
-    A candidate with time memory (``lag``, ``dTdt``, ``warmup``) is scored once more with
-    the static curvature the model lacks (``curve`` from :func:`_score_round`) on both
-    sides, its time constants refitted there: on a run that heats or cools only, a slow
-    decay or rate term can hold curvature the final RBF network holds anyway, and it
-    extrapolates wrongly off the one ramp direction it was fitted on. :func:`_score`
-    requires ``dTdt`` and ``warmup`` to gain here and ranks them by it; ``lag`` (no column
-    of its own) is ranked by it when it is the larger gain.
-    """
-    effects, trial = _candidate(data, curve[1], params, eid)
-    return (curve[2] - mse(data, LinearModel(data, effects, trial).cv_residual(folds))) * DEG ** 2
-
-
 @dataclass
 class _Round:
     """One round of scoring: the current model's fit, folds, held-out residual and scores."""
@@ -192,7 +176,7 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
     Score one candidate against ``model`` (fitted in ``rnd``): its score, contribution, params.
 
     With ``curve`` (:func:`_score_round`) a time-memory candidate must also gain held out
-    beside the static curve (:func:`_beside_curve`), and is ranked by its gain there.
+    beside the static curve, and is ranked by its gain there.
     """
     cand = LinearModel(data, _effects(model.effects, {eid}), params)
     idx = cand.columns_of(eid)
@@ -222,7 +206,13 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
     if gain <= max(o.min_heldout * floor ** 2, 0.01 * mse_m * DEG ** 2):
         why.append('no held-out gain')
     elif curve is not None:
-        beside = _beside_curve(data, curve, rnd.folds, eid, params)
+        # On a run that heats or cools only, a slow decay or rate term can hold curvature the
+        # final RBF network holds anyway, and it extrapolates wrongly off the one ramp
+        # direction it was fitted on: scored once more with the static curvature the model
+        # lacks on both sides, its time constants refitted there.
+        effects, trial = _candidate(data, curve[1], params, eid)
+        ho_curve = LinearModel(data, effects, trial).cv_residual(rnd.folds)
+        beside = (curve[2] - mse(data, ho_curve)) * DEG ** 2
         if eid not in THERMAL_EFFECTS and beside <= max(o.min_heldout * floor ** 2,
                                                         0.01 * curve[2] * DEG ** 2):
             why.append(f'no held-out gain beside {"+".join(curve[0])}')
@@ -354,7 +344,7 @@ def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
         item for item in rnd.results[1:] for sc, contrib, _p in [item]
         if contrib is not None and sc.heldout_gain_dps2 > 0
         and sc.heldout_gain_dps2 >= (1.0 - o.alias_margin) * best.heldout_gain_dps2
-        and (abs(weighted_corr(contrib, contrib_b, data.w)) >= o.alias_corr
+        and (abs(corr(contrib * data.sw[:, None], contrib_b * data.sw[:, None])) >= o.alias_corr
              or (one and {sc.effect, best.effect} == {'lag', 'dTdt'} and sc.passed))]
     best, _c, p_b = min((x for x in family if x[0].passed),
                         key=lambda x: _n_params(model, x[0].effect, x[2]))

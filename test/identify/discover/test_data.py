@@ -30,8 +30,8 @@ import warnings
 from discover_cases import DEG
 from gyro_tdc.data.runs import Run
 from gyro_tdc.identify.discover import discover
-from gyro_tdc.identify.discover.data import (ar1, bandwidth, BlockData, hac_pvalue, LinearModel,
-                                             make_folds, ols_hac, rel_residual, weighted_corr)
+from gyro_tdc.identify.discover.data import (ar1, bandwidth, BlockData, corr, hac_pvalue,
+                                             LinearModel, make_folds, ols_hac, rel_residual)
 import numpy as np
 import pytest
 from synth import synth_run
@@ -126,6 +126,7 @@ def test_ar1_and_bandwidth_see_the_memory_of_the_noise():
 
 
 def test_rel_residual_and_weighted_corr():
+    # The weighted correlation of two (K, 3) contributions: corr of both scaled by sqrt(w).
     rng = np.random.default_rng(4)
     x = rng.normal(size=(200, 3))
     assert rel_residual(x, x @ np.array([1.0, -2.0, 0.5])) < 1e-12
@@ -133,10 +134,10 @@ def test_rel_residual_and_weighted_corr():
     assert rel_residual(np.zeros((200, 0)), rng.normal(size=200)) == 1.0
     assert 0.9 < rel_residual(x, rng.normal(size=200)) <= 1.0
     a = rng.normal(size=(50, 3))
-    w = rng.uniform(0.5, 2.0, size=50)
-    assert weighted_corr(a, 2.0 * a, w) == pytest.approx(1.0)
-    assert weighted_corr(a, -a, w) == pytest.approx(-1.0)
-    assert weighted_corr(a, np.zeros_like(a), w) == 0.0
+    sw = np.sqrt(rng.uniform(0.5, 2.0, size=50))[:, None]
+    assert corr(a * sw, 2.0 * a * sw) == pytest.approx(1.0)
+    assert corr(a * sw, -a * sw) == pytest.approx(-1.0)
+    assert corr(a * sw, np.zeros_like(a) * sw) == 0.0
 
 
 @pytest.mark.parametrize('a2, significant', [((2e-4, 1.5e-4, -1e-4), True), ((0, 0, 0), False)])
