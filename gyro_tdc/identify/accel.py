@@ -397,10 +397,10 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     if out.note:
         return out
     x, y = (np.concatenate([sg[k] for sg in segs]) for k in ('x', 'y'))
-    lf = fit_linear(x, y, kind=kind, n_centers=n_centers, ridge=ridge, seed=seed, groups=groups)
-    lf, offsets, out.check, out.note = _carried(
-        lf, segs, x, y, groups, kind=kind, n_centers=n_centers, seed=seed,
-        min_folds=min_folds) if judge else (lf, lf.offsets, None, '')
+    linear = {'kind': kind, 'n_centers': n_centers, 'seed': seed}
+    lf = fit_linear(x, y, ridge=ridge, groups=groups, **linear)
+    lf, offsets, out.check, out.note = (_carried(lf, segs, x, y, groups, min_folds, linear)
+                                        if judge else (lf, lf.offsets, None, ''))
     if out.note:
         return out
     coef = lf.coef.copy()
@@ -427,16 +427,15 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
 
 
 def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.float64],
-             groups: NDArray[np.int64], *, kind: str, n_centers: int, seed: int,
-             min_folds: int) -> tuple:
+             groups: NDArray[np.int64], min_folds: int, linear: dict) -> tuple:
     """
     Judge the change on each power cycle held out, as the gyro's curve; return the fit.
 
     Each held-out orientation segment is re-anchored (``check_sessions`` with the runs as
     ``units``); with one power cycle nothing is held out, and a curve of stops
     (``min_folds`` >= MIN_FOLDS) then needs a segment of SLOW_CURVE_S spanning
-    MIN_SESSION_SPAN_C. Returns the fit, the segments' offsets, the check's record (mg^2;
-    None: none) and why no part ('': one).
+    MIN_SESSION_SPAN_C; ``linear`` are the refits' ``fit_linear`` options. Returns the fit,
+    the segments' offsets, the check's record (mg^2; None: none) and why no part ('': one).
     """
     units = np.concatenate([np.full(sg['n'].size, sg['run']) for sg in segs])
     if np.unique(units).size < 2:
@@ -446,10 +445,9 @@ def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.flo
             f'more spans {MIN_SESSION_SPAN_C:g} degC of its own: no held-out power cycle can '
             'tell whether the change carries to the next')
     n, state = (np.concatenate([sg[k] for sg in segs]) for k in ('n', 'state'))
-    lf, offsets, check = check_sessions(lf, lf.offsets, x, y, None, groups,
-                                        n.astype(np.float64), state, kind=kind,
-                                        n_centers=n_centers, seed=seed, units=units,
-                                        min_folds=min_folds, unit=('mg2', 1.0 / MG ** 2))
+    lf, offsets, check = check_sessions(lf, lf.offsets, x, y, None, groups, n.astype(np.float64),
+                                        state, units=units, min_folds=min_folds,
+                                        unit=('mg2', 1.0 / MG ** 2), **linear)
     if check is None or len(check['offset_only']) < 3:
         return lf, offsets, check, ''
     why = ('the change with temperature does not predict every held-out power cycle better '

@@ -93,20 +93,27 @@ def check_finite(run: Run, keys: Sequence[str] = ('temp', 'omega', 'omega_ref'))
 
 
 def _check_runs(runs: Sequence[Run], ids: Sequence[str],
-                rows: Sequence[NDArray[np.bool_]] | None) -> int:
-    """Return the samples that count; FitError, naming the problem, when they cannot fit."""
+                rows: Sequence[NDArray[np.bool_]] | None
+                ) -> tuple[list[int], tuple[float, float] | None]:
+    """
+    Return the samples that count per run and the thermometer's span (None: not needed).
+
+    FitError, naming the problem, when they cannot fit.
+    """
     if not runs:
         raise FitError('No training runs given.')
     if rows is not None and (len(rows) != len(runs) or any(
             np.shape(m) != (len(r),) for r, m in zip(runs, rows))):
         raise FitError('Expected `rows` to hold one boolean mask of shape (N,) per run.')
-    n = sum(len(r) if rows is None else int(np.count_nonzero(rows[i])) for i, r in enumerate(runs))
-    if n < MIN_SAMPLES:
+    kept = [len(r) if rows is None else int(np.count_nonzero(rows[i])) for i, r in enumerate(runs)]
+    if (n := sum(kept)) < MIN_SAMPLES:
         raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
     for r in runs:
         check_finite(r)
+    thermometer = None
     if TEMPERATURE_EFFECTS & set(ids):
-        lo, hi = span([r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)])
+        lo, hi = thermometer = span([r.temp if rows is None else r.temp[rows[i]]
+                                     for i, r in enumerate(runs)])
         if hi - lo < MIN_SPAN_C:
             raise FitError(f'Temperature span too small to fit: {hi - lo:.3f} degC '
                            f'(need at least {MIN_SPAN_C} degC).')
@@ -114,20 +121,7 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
     if needs_ref and not any(np.any(np.abs(r.omega_ref) > 1e-9) for r in runs):
         raise FitError(f'Effect `{needs_ref[0]}` needs a non-zero reference rate (rate-table '
                        'data); every training run has omega_ref = 0.')
-    return n
-
-
-def _check_state_span(state_span: tuple[float, float], runs: Sequence[Run],
-                      rows: Sequence[NDArray[np.bool_]] | None, th: ThermalState,
-                      ids: Sequence[str]) -> None:
-    """Raise FitError when the lagged die temperature the model is fitted in spans too little."""
-    lo, hi = state_span
-    if th.kind != 'none' and TEMPERATURE_EFFECTS & set(ids) and hi - lo < MIN_SPAN_C:
-        tlo, thi = span([r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)])
-        raise FitError(f'The lagged die temperature (tau {th.tau_total_s:.0f} s) spans '
-                       f'{hi - lo:.3f} degC only ({lo:.2f} .. {hi:.2f}; the thermometer '
-                       f'{thi - tlo:.2f} degC; need at least {MIN_SPAN_C} degC): record a wider '
-                       'range, or give --features without lag.')
+    return kept, thermometer
 
 
 def check_choices(kind: str, thermal: str | ThermalState | None) -> None:
@@ -224,7 +218,8 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     if o.kind == 'rbf' and o.n_centers < 1:
         raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {o.n_centers}.')
     ids, mode, th = _thermal_choice(ids, o.thermal, o.fit_params, o.params)
-    n_total = _check_runs(runs, ids, rows)
+    kept, thermometer = _check_runs(runs, ids, rows)
+    n_total = sum(kept)
     labels = _labels(runs, sessions)
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     inputs = input_ids(ids, state=True)
@@ -235,8 +230,14 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
 
     states = [run_state(th, r) for r in runs]
-    state_span = span(states if rows is None else [s[m] for s, m in zip(states, rows)])
-    _check_state_span(state_span, runs, rows, th, ids)
+    lo, hi = state_span = span(states if rows is None else [s[m] for s, m in zip(states, rows)])
+    if th.kind != 'none' and thermometer is not None and hi - lo < MIN_SPAN_C:
+        # The lagged die temperature the model is fitted in spans too little.
+        tlo, thi = thermometer
+        raise FitError(f'The lagged die temperature (tau {th.tau_total_s:.0f} s) spans '
+                       f'{hi - lo:.3f} degC only ({lo:.2f} .. {hi:.2f}; the thermometer '
+                       f'{thi - tlo:.2f} degC; need at least {MIN_SPAN_C} degC): record a wider '
+                       'range, or give --features without lag.')
     x = np.concatenate([b.features(inputs, t0, par, th, state=s) for b, s in zip(blocks, states)])
     scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])
                   if 'scale' in ids else None)
@@ -273,8 +274,8 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
                'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * DEG2_PER_RAD2).tolist(),
                'ridge': fit.ridge, **({'thermal': thermal_info} if thermal_info else {})}
     if groups is not None:
-        metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], rows,
-                                               check, turn_on)
+        metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], kept, check,
+                                               turn_on)
     return CompensationModel.network(o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
                                      temp_range_c=state_span, residual_var=residual_var,
                                      frame_id=o.frame_id, sensor_id=o.sensor_id,
@@ -343,15 +344,13 @@ def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
 
 
 def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArray[np.float64],
-                     rows: Sequence[NDArray[np.bool_]] | None, check: dict | None,
-                     turn_on: dict | None) -> dict:
+                     kept: Sequence[int], check: dict | None, turn_on: dict | None) -> dict:
     """Return the sessions' names, samples, offsets from the model's (deg/s) and the checks."""
     rel = offsets * DEG_PER_RAD
     own = [[i for i, g in enumerate(labels) if g == k] for k in range(offsets.shape[0])]
     return {'count': int(offsets.shape[0]),
             'names': [', '.join(runs[i].name for i in ii) for ii in own],
-            'samples': [sum(len(runs[i]) if rows is None else int(np.count_nonzero(rows[i]))
-                            for i in ii) for ii in own], 'offset_dps': rel.tolist(),
+            'samples': [sum(kept[i] for i in ii) for ii in own], 'offset_dps': rel.tolist(),
             'spread_dps': (rel.max(axis=0) - rel.min(axis=0)).tolist(),
             **({'heldout': check} if check else {}),
             **({'turn_on': turn_on} if turn_on else {})}
