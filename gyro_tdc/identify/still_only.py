@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 import math
 from typing import Sequence
 
-from gyro_tdc.base import DEG_PER_RAD
+from gyro_tdc.base import DEG_PER_RAD, plain
 from gyro_tdc.data import Coverage, coverage, RATE_THRESHOLD_C_PER_MIN, Run, temperature_rate
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
@@ -124,13 +124,12 @@ class StillReport:
     def to_dict(self) -> dict:
         """Return the report as plain types (the model's ``training`` metrics)."""
         cov, kept = self.coverage, len([s for s in self.stretches if s.kept])
-        return {'still_s': float(self.still_s), 'total_s': float(self.total_s),
-                'stretches': kept, 'dropped': len(self.stretches) - kept,
-                'bin_c': float(cov.bin_c), 'edges_c': [float(v) for v in cov.edges],
-                'minutes': [float(v) for v in cov.minutes],
-                'heating_min': float(cov.heating_min), 'cooling_min': float(cov.cooling_min),
-                'steady_min': float(cov.steady_min), 'motion_topic': self.motion_topic,
-                'advice': list(self.advice)}
+        return plain({'still_s': float(self.still_s), 'total_s': float(self.total_s),
+                      'stretches': kept, 'dropped': len(self.stretches) - kept,
+                      'bin_c': float(cov.bin_c), 'edges_c': cov.edges, 'minutes': cov.minutes,
+                      'heating_min': float(cov.heating_min), 'cooling_min': float(cov.cooling_min),
+                      'steady_min': float(cov.steady_min), 'motion_topic': self.motion_topic,
+                      'advice': self.advice})
 
 
 def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None] | None = None,
