@@ -357,10 +357,8 @@ def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence
     """Add the accelerometer part and the training records, save, return the result."""
     accel_fit = (fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c,
                            min_folds=min_folds) if o.accel else None)
-    if choice is not None:
-        metrics = {**metrics, 'features': choice.to_dict()}
-    model = model.replace(accel=None if accel_fit is None else accel_fit.part,
-                          metrics={**model.metrics, **metrics})
+    model = model.replace(accel=None if accel_fit is None else accel_fit.part, metrics={
+        **model.metrics, **metrics, **({} if choice is None else {'features': choice.to_dict()})})
     return TrainResult(model=model, path=Path(save_model(model, out)), choice=choice,
                        accel=accel_fit, **result)
 
