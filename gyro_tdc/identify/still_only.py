@@ -274,17 +274,12 @@ def _advice(cov: Coverage) -> list[str]:
         out.append(f'{park} at temperatures above {math.ceil(hi):g} degC (right after a long '
                    f'drive on a warm day, up to {b:g} degC): the still time ends at '
                    f'{hi:.1f} degC')
-    for i in cov.sparse:
-        a, b = cov.edges[i], cov.edges[i + 1]
-        out.append(f'{park} at {a:g} .. {b:g} degC: only {cov.minutes[i]:.0f} min of still '
-                   'time there')
-    if cov.cooling_min < _FEW_MIN:
-        out.append(f'no cooling still time ({cov.cooling_min:.0f} min): park right after a '
-                   'drive, while the IMU cools')
-    if cov.heating_min < _FEW_MIN:
-        out.append(f'no heating still time ({cov.heating_min:.0f} min): park while the day '
-                   'warms up (morning sun), or power the IMU on and leave it still')
-    return out
+    out += [f'{park} at {cov.edges[i]:g} .. {cov.edges[i + 1]:g} degC: only '
+            f'{cov.minutes[i]:.0f} min of still time there' for i in cov.sparse]
+    return out + [f'no {way} still time ({minutes:.0f} min): {when}' for way, minutes, when in (
+        ('cooling', cov.cooling_min, 'park right after a drive, while the IMU cools'),
+        ('heating', cov.heating_min, 'park while the day warms up (morning sun), or power the '
+         'IMU on and leave it still')) if minutes < _FEW_MIN]
 
 
 def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
