@@ -135,8 +135,8 @@ def check_choices(kind: str, thermal: str | ThermalState | None) -> None:
 
 def _thermal_choice(ids: tuple[str, ...], thermal: str | ThermalState | None,
                     fit_params: bool, params: Mapping | None
-                    ) -> tuple[tuple[str, ...], str, ThermalState | None]:
-    """Return the effect ids, the thermal search mode and the fixed front end (or None)."""
+                    ) -> tuple[tuple[str, ...], ThermalState | str]:
+    """Return the effect ids and the fixed front end, or the mode of its search (a str)."""
     lagged, fixed = _LAG in ids, isinstance(thermal, ThermalState)
     if thermal is None:
         thermal = 'first_order' if lagged else 'none'
@@ -145,15 +145,14 @@ def _thermal_choice(ids: tuple[str, ...], thermal: str | ThermalState | None,
             what = "a thermal front end of kind 'none'" if fixed else "thermal='none'"
             raise FitError(f'`lag` makes the model temperature a lagged state; {what} '
                            'contradicts it.')
-        return ids, 'fixed', thermal if fixed else ThermalState()
+        return ids, thermal if fixed else ThermalState()
     ids = with_implied(ids + (_LAG,))
     if fixed or fit_params:
-        return ids, 'fixed' if fixed else thermal, thermal if fixed else None
+        return ids, thermal
     if thermal == 'two_node':
         raise FitError("thermal='two_node' with fit_params=False needs the time constants: "
                        'pass a ThermalState.')
-    return ids, 'fixed', ThermalState('first_order', (resolve_params((_LAG,), params)[_LAG]
-                                                      ['tau_s'],))
+    return ids, ThermalState('first_order', (resolve_params((_LAG,), params)[_LAG]['tau_s'],))
 
 
 @dataclass(frozen=True)
@@ -217,7 +216,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     ids = normalise_ids(o.features)
     if o.kind == 'rbf' and o.n_centers < 1:
         raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {o.n_centers}.')
-    ids, mode, th = _thermal_choice(ids, o.thermal, o.fit_params, o.params)
+    ids, th = _thermal_choice(ids, o.thermal, o.fit_params, o.params)
     kept, thermometer = _check_runs(runs, ids, rows)
     n_total = sum(kept)
     labels = _labels(runs, sessions)
@@ -227,7 +226,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     rows = None if rows is None else [np.asarray(m, dtype=bool) for m in rows]
     block = block_length(sum(len(r) for r in runs), o.max_rows, at_most=True)
     blocks, y, groups = run_blocks(runs, block, rows, labels)
-    th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
+    th, thermal_info = _search(runs, o, ids, inputs, t0, par, th, rows, labels)
 
     states = [run_state(th, r) for r in runs]
     lo, hi = state_span = span(states if rows is None else [s[m] for s, m in zip(states, rows)])
@@ -283,23 +282,24 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
 
 
 def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tuple[str, ...],
-            t0: float, par: dict, mode: str, th: ThermalState | None,
+            t0: float, par: dict, th: ThermalState | str,
             rows: Sequence[NDArray[np.bool_]] | None, labels: Sequence[int] | None
             ) -> tuple[ThermalState, dict]:
     """
     Fit the effect time constants (into ``par``) and the thermal front end on coarse blocks.
 
-    Returns the front end (``th`` when fixed) and the search record (empty when fixed).
+    Returns the front end (``th`` when fixed, else searched in the mode ``th`` names) and the
+    search record (empty when fixed).
     A thermal state is searched with a polynomial in it (for an rbf model, the model's
     terms with every power of the state): an RBF network of a slowly lagged state fits any
     function of time, the state turned into a clock, and pins nothing.
     """
     free = ([(eid, name) for eid in inputs for name in EFFECTS[eid].fitted]
             if o.fit_params else [])
-    fit_state = th is None
+    fit_state = isinstance(th, str)
     if not (free or fit_state):
         return th, {}
-    th = ThermalState('first_order', (par[_LAG]['tau_s'],)) if fit_state else th
+    mode, th = (th, ThermalState('first_order', (par[_LAG]['tau_s'],))) if fit_state else ('', th)
     search = ParamSearch(runs, input_ids(ids + tuple(STATE_TERMS), state=True)
                          if fit_state and o.kind == 'rbf' else inputs, t0,
                          inner='poly' if fit_state else o.kind, n_centers=o.n_centers,
