@@ -320,25 +320,6 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
     return segs, (lo, hi)
 
 
-def _sums_of_squares(segs: Sequence[dict], design, coef: NDArray[np.float64],
-                     offsets: NDArray[np.float64]
-                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """
-    Return the full-rate sums of squares of the fit's residual and of the raw force (3,).
-
-    The scatter within each block plus each block's count times its squared residual (the
-    drift is constant within a block); raw around each segment's mean.
-    """
-    ss, ss_raw = np.zeros(3), np.zeros(3)
-    for g, sg in enumerate(segs):
-        n = sg['n'][:, None]
-        e = sg['y'] - (design(sg['x']) @ coef + offsets[g])
-        ss += sg['within'].sum(axis=0) + (n * e ** 2).sum(axis=0)
-        mean = (n * sg['y']).sum(axis=0) / n.sum()
-        ss_raw += sg['within'].sum(axis=0) + (n * (sg['y'] - mean) ** 2).sum(axis=0)
-    return ss, ss_raw
-
-
 def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
               features: str | Sequence[str] | None = None, kind: str | None = None,
               n_centers: int | None = None, ridge: float | str = 'auto', seed: int = 0,
@@ -405,8 +386,17 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         return out
     coef = lf.coef.copy()
     coef[0] = -(lf.design(np.zeros((1, lf.mean.size)))[0][1:] @ coef[1:])  # zero at T0
-    # c_g, the still force at T0: each segment's offset less the constant.
-    ss, ss_raw = _sums_of_squares(segs, lf.design, coef, offsets - coef[0])
+    # The full-rate sums of squares of the residual and of the raw force (raw around each
+    # segment's mean): the scatter within each block plus each block's count times its
+    # squared residual (the drift is constant within a block). c_g, the still force at T0:
+    # each segment's offset less the constant.
+    ss, ss_raw, c_g = np.zeros(3), np.zeros(3), offsets - coef[0]
+    for g, sg in enumerate(segs):
+        n = sg['n'][:, None]
+        e = sg['y'] - (lf.design(sg['x']) @ coef + c_g[g])
+        ss += sg['within'].sum(axis=0) + (n * e ** 2).sum(axis=0)
+        mean = (n * sg['y']).sum(axis=0) / n.sum()
+        ss_raw += sg['within'].sum(axis=0) + (n * (sg['y'] - mean) ** 2).sum(axis=0)
     out.raw_bs, out.train_bs = ss_raw / n_static, ss / n_static
     metrics = {
         'samples': int(n_static), 'runs': [r.name for r, _ in usable], 'segments': len(segs),

@@ -33,7 +33,7 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
 from gyro_tdc.identify.power_cycles import check_sessions
 from gyro_tdc.identify.tau import (choose_state, fit_time_constant, ParamSearch, run_blocks,
-                                   run_state, RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
+                                   run_state, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
                             REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
                             THERMAL_EFFECTS, ThermalState, with_implied)
@@ -266,7 +266,14 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
         par[_LAG] = {'tau_s': th.tau_total_s}
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
                'gyro_tdc_version': __version__, **(o.created or {})}
-    residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
+    # The training residual variance per axis at full rate, from the blocks: the drift moves
+    # slowly, so sum((y - b)^2) is the within-block scatter plus each block's count times its
+    # squared residual; compensation divides by (1 + s dT), so does the residual.
+    within = np.concatenate([b.scatter(fit.scale, t0, state=s) if np.any(fit.scale)
+                             else b.ss_within for b, s in zip(blocks, states)])
+    gain = 1.0 + (bstate - t0)[:, None] * fit.scale
+    ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
+    residual_var = np.maximum(ss, 0.0) / n_total
     metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
                'train_bs_dps2': (residual_var * DEG2_PER_RAD2).tolist(),
                'train_rms_dps': np.sqrt(residual_var * DEG2_PER_RAD2).tolist(),
@@ -316,23 +323,6 @@ def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tu
             tau, seen = search.first_order(par, TAU_BOUNDS)
             th = ThermalState('first_order', (tau,))
     return choose_state(search, mode, par, th.tau_s[0], seen) if fit_state else (th, {})
-
-
-def _residual_var(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float64]],
-                  counts: NDArray[np.float64], bstate: NDArray[np.float64], fit: LinearFit,
-                  t0: float, n_total: int) -> NDArray[np.float64]:
-    """
-    Return the training residual variance per axis at full rate, from the blocks.
-
-    The drift moves slowly, so ``sum((y - b)^2)`` is the within-block scatter plus each
-    block's count times its squared residual; compensation divides by ``(1 + s dT)``, so
-    does the residual.
-    """
-    within = np.concatenate([b.scatter(fit.scale, t0, state=s) if np.any(fit.scale)
-                             else b.ss_within for b, s in zip(blocks, states)])
-    gain = 1.0 + (bstate - t0)[:, None] * fit.scale
-    ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
-    return np.maximum(ss, 0.0) / n_total
 
 
 def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
