@@ -320,25 +320,6 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
     return segs, (lo, hi)
 
 
-def _sums_of_squares(segs: Sequence[dict], design, coef: NDArray[np.float64],
-                     offsets: NDArray[np.float64]
-                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """
-    Return the full-rate sums of squares of the fit's residual and of the raw force (3,).
-
-    The scatter within each block plus each block's count times its squared residual (the
-    drift is constant within a block); raw around each segment's mean.
-    """
-    ss, ss_raw = np.zeros(3), np.zeros(3)
-    for g, sg in enumerate(segs):
-        n = sg['n'][:, None]
-        e = sg['y'] - (design(sg['x']) @ coef + offsets[g])
-        ss += sg['within'].sum(axis=0) + (n * e ** 2).sum(axis=0)
-        mean = (n * sg['y']).sum(axis=0) / n.sum()
-        ss_raw += sg['within'].sum(axis=0) + (n * (sg['y'] - mean) ** 2).sum(axis=0)
-    return ss, ss_raw
-
-
 def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
               features: str | Sequence[str] | None = None, kind: str | None = None,
               n_centers: int | None = None, ridge: float | str = 'auto', seed: int = 0,
@@ -397,16 +378,25 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     if out.note:
         return out
     x, y = (np.concatenate([sg[k] for sg in segs]) for k in ('x', 'y'))
-    lf = fit_linear(x, y, kind=kind, n_centers=n_centers, ridge=ridge, seed=seed, groups=groups)
-    lf, offsets, out.check, out.note = _carried(
-        lf, segs, x, y, groups, kind=kind, n_centers=n_centers, seed=seed,
-        min_folds=min_folds) if judge else (lf, lf.offsets, None, '')
+    linear = {'kind': kind, 'n_centers': n_centers, 'seed': seed}
+    lf = fit_linear(x, y, ridge=ridge, groups=groups, **linear)
+    lf, offsets, out.check, out.note = (_carried(lf, segs, x, y, groups, min_folds, linear)
+                                        if judge else (lf, lf.offsets, None, ''))
     if out.note:
         return out
     coef = lf.coef.copy()
     coef[0] = -(lf.design(np.zeros((1, lf.mean.size)))[0][1:] @ coef[1:])  # zero at T0
-    # c_g, the still force at T0: each segment's offset less the constant.
-    ss, ss_raw = _sums_of_squares(segs, lf.design, coef, offsets - coef[0])
+    # The full-rate sums of squares of the residual and of the raw force (raw around each
+    # segment's mean): the scatter within each block plus each block's count times its
+    # squared residual (the drift is constant within a block). c_g, the still force at T0:
+    # each segment's offset less the constant.
+    ss, ss_raw, c_g = np.zeros(3), np.zeros(3), offsets - coef[0]
+    for g, sg in enumerate(segs):
+        n = sg['n'][:, None]
+        e = sg['y'] - (lf.design(sg['x']) @ coef + c_g[g])
+        ss += sg['within'].sum(axis=0) + (n * e ** 2).sum(axis=0)
+        mean = (n * sg['y']).sum(axis=0) / n.sum()
+        ss_raw += sg['within'].sum(axis=0) + (n * (sg['y'] - mean) ** 2).sum(axis=0)
     out.raw_bs, out.train_bs = ss_raw / n_static, ss / n_static
     metrics = {
         'samples': int(n_static), 'runs': [r.name for r, _ in usable], 'segments': len(segs),
@@ -427,16 +417,15 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
 
 
 def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.float64],
-             groups: NDArray[np.int64], *, kind: str, n_centers: int, seed: int,
-             min_folds: int) -> tuple:
+             groups: NDArray[np.int64], min_folds: int, linear: dict) -> tuple:
     """
     Judge the change on each power cycle held out, as the gyro's curve; return the fit.
 
     Each held-out orientation segment is re-anchored (``check_sessions`` with the runs as
     ``units``); with one power cycle nothing is held out, and a curve of stops
     (``min_folds`` >= MIN_FOLDS) then needs a segment of SLOW_CURVE_S spanning
-    MIN_SESSION_SPAN_C. Returns the fit, the segments' offsets, the check's record (mg^2;
-    None: none) and why no part ('': one).
+    MIN_SESSION_SPAN_C; ``linear`` are the refits' ``fit_linear`` options. Returns the fit,
+    the segments' offsets, the check's record (mg^2; None: none) and why no part ('': one).
     """
     units = np.concatenate([np.full(sg['n'].size, sg['run']) for sg in segs])
     if np.unique(units).size < 2:
@@ -446,10 +435,9 @@ def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.flo
             f'more spans {MIN_SESSION_SPAN_C:g} degC of its own: no held-out power cycle can '
             'tell whether the change carries to the next')
     n, state = (np.concatenate([sg[k] for sg in segs]) for k in ('n', 'state'))
-    lf, offsets, check = check_sessions(lf, lf.offsets, x, y, None, groups,
-                                        n.astype(np.float64), state, kind=kind,
-                                        n_centers=n_centers, seed=seed, units=units,
-                                        min_folds=min_folds, unit=('mg2', 1.0 / MG ** 2))
+    lf, offsets, check = check_sessions(lf, lf.offsets, x, y, None, groups, n.astype(np.float64),
+                                        state, units=units, min_folds=min_folds,
+                                        unit=('mg2', 1.0 / MG ** 2), **linear)
     if check is None or len(check['offset_only']) < 3:
         return lf, offsets, check, ''
     why = ('the change with temperature does not predict every held-out power cycle better '

@@ -281,15 +281,6 @@ def share_kept(raw: float, full: float, part: float) -> float:
     return (raw - part) / gain if gain > 0 else math.nan
 
 
-def _head_removed(comp: NDArray[np.float64], run: Run, reanchor_s: float
-                  ) -> NDArray[np.float64]:
-    """Return ``comp`` minus its mean error over the first ``reanchor_s`` s (0: as it is)."""
-    if reanchor_s <= 0:
-        return comp
-    head = run.t <= run.t[0] + reanchor_s
-    return comp - (comp[head] - run.omega_ref[head]).mean(axis=0)
-
-
 def score_export(model: CompensationModel, forms: dict, runs: Sequence[Run], *,
                  reanchor_s: float = 0.0, out_of_range: str = DEFAULT_OUT_OF_RANGE) -> list:
     """
@@ -302,11 +293,12 @@ def score_export(model: CompensationModel, forms: dict, runs: Sequence[Run], *,
     """
     out = []
     for run in runs:
-        comp = {'raw': run.omega,
-                'model': _head_removed(compensate(model, run.t, run.temp, run.omega,
-                                                  out_of_range=out_of_range), run, reanchor_s)}
-        comp.update({label: _head_removed(run.omega - form.correction(run.temp), run, reanchor_s)
-                     for label, form in forms.items()})
+        comp = {'model': compensate(model, run.t, run.temp, run.omega, out_of_range=out_of_range),
+                **{label: run.omega - form.correction(run.temp) for label, form in forms.items()}}
+        if reanchor_s > 0:          # each one's mean error over the first reanchor_s s removed
+            head = run.t <= run.t[0] + reanchor_s
+            comp = {k: v - (v[head] - run.omega_ref[head]).mean(axis=0) for k, v in comp.items()}
+        comp = {'raw': run.omega, **comp}
         outside = max([0.0] + [float(np.mean((run.temp < lo) | (run.temp > hi)))
                                for lo, hi in (f.range_c for f in forms.values())])
         out.append(ExportScore(run.name, len(run), outside,

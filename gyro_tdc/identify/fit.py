@@ -33,7 +33,7 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
 from gyro_tdc.identify.power_cycles import check_sessions
 from gyro_tdc.identify.tau import (choose_state, fit_time_constant, ParamSearch, run_blocks,
-                                   run_state, RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
+                                   run_state, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
                             REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
                             THERMAL_EFFECTS, ThermalState, with_implied)
@@ -93,20 +93,27 @@ def check_finite(run: Run, keys: Sequence[str] = ('temp', 'omega', 'omega_ref'))
 
 
 def _check_runs(runs: Sequence[Run], ids: Sequence[str],
-                rows: Sequence[NDArray[np.bool_]] | None) -> int:
-    """Return the samples that count; FitError, naming the problem, when they cannot fit."""
+                rows: Sequence[NDArray[np.bool_]] | None
+                ) -> tuple[list[int], tuple[float, float] | None]:
+    """
+    Return the samples that count per run and the thermometer's span (None: not needed).
+
+    FitError, naming the problem, when they cannot fit.
+    """
     if not runs:
         raise FitError('No training runs given.')
     if rows is not None and (len(rows) != len(runs) or any(
             np.shape(m) != (len(r),) for r, m in zip(runs, rows))):
         raise FitError('Expected `rows` to hold one boolean mask of shape (N,) per run.')
-    n = sum(len(r) if rows is None else int(np.count_nonzero(rows[i])) for i, r in enumerate(runs))
-    if n < MIN_SAMPLES:
+    kept = [len(r) if rows is None else int(np.count_nonzero(rows[i])) for i, r in enumerate(runs)]
+    if (n := sum(kept)) < MIN_SAMPLES:
         raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
     for r in runs:
         check_finite(r)
+    thermometer = None
     if TEMPERATURE_EFFECTS & set(ids):
-        lo, hi = span([r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)])
+        lo, hi = thermometer = span([r.temp if rows is None else r.temp[rows[i]]
+                                     for i, r in enumerate(runs)])
         if hi - lo < MIN_SPAN_C:
             raise FitError(f'Temperature span too small to fit: {hi - lo:.3f} degC '
                            f'(need at least {MIN_SPAN_C} degC).')
@@ -114,20 +121,7 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
     if needs_ref and not any(np.any(np.abs(r.omega_ref) > 1e-9) for r in runs):
         raise FitError(f'Effect `{needs_ref[0]}` needs a non-zero reference rate (rate-table '
                        'data); every training run has omega_ref = 0.')
-    return n
-
-
-def _check_state_span(state_span: tuple[float, float], runs: Sequence[Run],
-                      rows: Sequence[NDArray[np.bool_]] | None, th: ThermalState,
-                      ids: Sequence[str]) -> None:
-    """Raise FitError when the lagged die temperature the model is fitted in spans too little."""
-    lo, hi = state_span
-    if th.kind != 'none' and TEMPERATURE_EFFECTS & set(ids) and hi - lo < MIN_SPAN_C:
-        tlo, thi = span([r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)])
-        raise FitError(f'The lagged die temperature (tau {th.tau_total_s:.0f} s) spans '
-                       f'{hi - lo:.3f} degC only ({lo:.2f} .. {hi:.2f}; the thermometer '
-                       f'{thi - tlo:.2f} degC; need at least {MIN_SPAN_C} degC): record a wider '
-                       'range, or give --features without lag.')
+    return kept, thermometer
 
 
 def check_choices(kind: str, thermal: str | ThermalState | None) -> None:
@@ -141,8 +135,8 @@ def check_choices(kind: str, thermal: str | ThermalState | None) -> None:
 
 def _thermal_choice(ids: tuple[str, ...], thermal: str | ThermalState | None,
                     fit_params: bool, params: Mapping | None
-                    ) -> tuple[tuple[str, ...], str, ThermalState | None]:
-    """Return the effect ids, the thermal search mode and the fixed front end (or None)."""
+                    ) -> tuple[tuple[str, ...], ThermalState | str]:
+    """Return the effect ids and the fixed front end, or the mode of its search (a str)."""
     lagged, fixed = _LAG in ids, isinstance(thermal, ThermalState)
     if thermal is None:
         thermal = 'first_order' if lagged else 'none'
@@ -151,15 +145,14 @@ def _thermal_choice(ids: tuple[str, ...], thermal: str | ThermalState | None,
             what = "a thermal front end of kind 'none'" if fixed else "thermal='none'"
             raise FitError(f'`lag` makes the model temperature a lagged state; {what} '
                            'contradicts it.')
-        return ids, 'fixed', thermal if fixed else ThermalState()
+        return ids, thermal if fixed else ThermalState()
     ids = with_implied(ids + (_LAG,))
     if fixed or fit_params:
-        return ids, 'fixed' if fixed else thermal, thermal if fixed else None
+        return ids, thermal
     if thermal == 'two_node':
         raise FitError("thermal='two_node' with fit_params=False needs the time constants: "
                        'pass a ThermalState.')
-    return ids, 'fixed', ThermalState('first_order', (resolve_params((_LAG,), params)[_LAG]
-                                                      ['tau_s'],))
+    return ids, ThermalState('first_order', (resolve_params((_LAG,), params)[_LAG]['tau_s'],))
 
 
 @dataclass(frozen=True)
@@ -223,8 +216,9 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     ids = normalise_ids(o.features)
     if o.kind == 'rbf' and o.n_centers < 1:
         raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {o.n_centers}.')
-    ids, mode, th = _thermal_choice(ids, o.thermal, o.fit_params, o.params)
-    n_total = _check_runs(runs, ids, rows)
+    ids, th = _thermal_choice(ids, o.thermal, o.fit_params, o.params)
+    kept, thermometer = _check_runs(runs, ids, rows)
+    n_total = sum(kept)
     labels = _labels(runs, sessions)
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     inputs = input_ids(ids, state=True)
@@ -232,11 +226,17 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     rows = None if rows is None else [np.asarray(m, dtype=bool) for m in rows]
     block = block_length(sum(len(r) for r in runs), o.max_rows, at_most=True)
     blocks, y, groups = run_blocks(runs, block, rows, labels)
-    th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
+    th, thermal_info = _search(runs, o, ids, inputs, t0, par, th, rows, labels)
 
     states = [run_state(th, r) for r in runs]
-    state_span = span(states if rows is None else [s[m] for s, m in zip(states, rows)])
-    _check_state_span(state_span, runs, rows, th, ids)
+    lo, hi = state_span = span(states if rows is None else [s[m] for s, m in zip(states, rows)])
+    if th.kind != 'none' and thermometer is not None and hi - lo < MIN_SPAN_C:
+        # The lagged die temperature the model is fitted in spans too little.
+        tlo, thi = thermometer
+        raise FitError(f'The lagged die temperature (tau {th.tau_total_s:.0f} s) spans '
+                       f'{hi - lo:.3f} degC only ({lo:.2f} .. {hi:.2f}; the thermometer '
+                       f'{thi - tlo:.2f} degC; need at least {MIN_SPAN_C} degC): record a wider '
+                       'range, or give --features without lag.')
     x = np.concatenate([b.features(inputs, t0, par, th, state=s) for b, s in zip(blocks, states)])
     scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])
                   if 'scale' in ids else None)
@@ -266,15 +266,22 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
         par[_LAG] = {'tau_s': th.tau_total_s}
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
                'gyro_tdc_version': __version__, **(o.created or {})}
-    residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
+    # The training residual variance per axis at full rate, from the blocks: the drift moves
+    # slowly, so sum((y - b)^2) is the within-block scatter plus each block's count times its
+    # squared residual; compensation divides by (1 + s dT), so does the residual.
+    within = np.concatenate([b.scatter(fit.scale, t0, state=s) if np.any(fit.scale)
+                             else b.ss_within for b, s in zip(blocks, states)])
+    gain = 1.0 + (bstate - t0)[:, None] * fit.scale
+    ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
+    residual_var = np.maximum(ss, 0.0) / n_total
     metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
                'train_bs_dps2': (residual_var * DEG2_PER_RAD2).tolist(),
                'train_rms_dps': np.sqrt(residual_var * DEG2_PER_RAD2).tolist(),
                'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * DEG2_PER_RAD2).tolist(),
                'ridge': fit.ridge, **({'thermal': thermal_info} if thermal_info else {})}
     if groups is not None:
-        metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], rows,
-                                               check, turn_on)
+        metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], kept, check,
+                                               turn_on)
     return CompensationModel.network(o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
                                      temp_range_c=state_span, residual_var=residual_var,
                                      frame_id=o.frame_id, sensor_id=o.sensor_id,
@@ -282,23 +289,24 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
 
 
 def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tuple[str, ...],
-            t0: float, par: dict, mode: str, th: ThermalState | None,
+            t0: float, par: dict, th: ThermalState | str,
             rows: Sequence[NDArray[np.bool_]] | None, labels: Sequence[int] | None
             ) -> tuple[ThermalState, dict]:
     """
     Fit the effect time constants (into ``par``) and the thermal front end on coarse blocks.
 
-    Returns the front end (``th`` when fixed) and the search record (empty when fixed).
+    Returns the front end (``th`` when fixed, else searched in the mode ``th`` names) and the
+    search record (empty when fixed).
     A thermal state is searched with a polynomial in it (for an rbf model, the model's
     terms with every power of the state): an RBF network of a slowly lagged state fits any
     function of time, the state turned into a clock, and pins nothing.
     """
     free = ([(eid, name) for eid in inputs for name in EFFECTS[eid].fitted]
             if o.fit_params else [])
-    fit_state = th is None
+    fit_state = isinstance(th, str)
     if not (free or fit_state):
         return th, {}
-    th = ThermalState('first_order', (par[_LAG]['tau_s'],)) if fit_state else th
+    mode, th = (th, ThermalState('first_order', (par[_LAG]['tau_s'],))) if fit_state else ('', th)
     search = ParamSearch(runs, input_ids(ids + tuple(STATE_TERMS), state=True)
                          if fit_state and o.kind == 'rbf' else inputs, t0,
                          inner='poly' if fit_state else o.kind, n_centers=o.n_centers,
@@ -317,23 +325,6 @@ def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tu
     return choose_state(search, mode, par, th.tau_s[0], seen) if fit_state else (th, {})
 
 
-def _residual_var(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float64]],
-                  counts: NDArray[np.float64], bstate: NDArray[np.float64], fit: LinearFit,
-                  t0: float, n_total: int) -> NDArray[np.float64]:
-    """
-    Return the training residual variance per axis at full rate, from the blocks.
-
-    The drift moves slowly, so ``sum((y - b)^2)`` is the within-block scatter plus each
-    block's count times its squared residual; compensation divides by ``(1 + s dT)``, so
-    does the residual.
-    """
-    within = np.concatenate([b.scatter(fit.scale, t0, state=s) if np.any(fit.scale)
-                             else b.ss_within for b, s in zip(blocks, states)])
-    gain = 1.0 + (bstate - t0)[:, None] * fit.scale
-    ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
-    return np.maximum(ss, 0.0) / n_total
-
-
 def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
                 ) -> NDArray[np.float64]:
     """Return the coefficients with the constant the mean of the session offsets."""
@@ -343,15 +334,13 @@ def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
 
 
 def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArray[np.float64],
-                     rows: Sequence[NDArray[np.bool_]] | None, check: dict | None,
-                     turn_on: dict | None) -> dict:
+                     kept: Sequence[int], check: dict | None, turn_on: dict | None) -> dict:
     """Return the sessions' names, samples, offsets from the model's (deg/s) and the checks."""
     rel = offsets * DEG_PER_RAD
     own = [[i for i, g in enumerate(labels) if g == k] for k in range(offsets.shape[0])]
     return {'count': int(offsets.shape[0]),
             'names': [', '.join(runs[i].name for i in ii) for ii in own],
-            'samples': [sum(len(runs[i]) if rows is None else int(np.count_nonzero(rows[i]))
-                            for i in ii) for ii in own], 'offset_dps': rel.tolist(),
+            'samples': [sum(kept[i] for i in ii) for ii in own], 'offset_dps': rel.tolist(),
             'spread_dps': (rel.max(axis=0) - rel.min(axis=0)).tolist(),
             **({'heldout': check} if check else {}),
             **({'turn_on': turn_on} if turn_on else {})}

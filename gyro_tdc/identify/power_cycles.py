@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 from gyro_tdc.base import DEG2_PER_RAD2
 from gyro_tdc.data import Run
@@ -74,9 +74,9 @@ def told_alone(told: Sequence[tuple[float, float]]) -> bool:
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
                    y: NDArray[np.float64], scale_cols: NDArray[np.float64] | None,
                    groups: NDArray[np.int64], counts: NDArray[np.float64],
-                   temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int,
-                   min_folds: int = 1, units: NDArray[np.int64] | None = None,
-                   unit: tuple[str, float] = ('dps2', DEG2_PER_RAD2)
+                   temp: NDArray[np.float64], *, min_folds: int = 1,
+                   units: NDArray[np.int64] | None = None,
+                   unit: tuple[str, float] = ('dps2', DEG2_PER_RAD2), **linear: Any
                    ) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
     """
     Validate the curve on held-out sessions (:func:`~gyro_tdc.signal.judge_curve`).
@@ -91,7 +91,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     :data:`MIN_FOLDS`) every axis offset only (``min_folds``); None without a curve.
     ``units`` (default ``groups``) is the power cycle of each row where one holds several
     offsets (the accelerometer's orientation segments): a fold holds out a power cycle.
-    ``unit`` names the mean squares' unit in the record's keys and scales them to it.
+    ``unit`` names the mean squares' unit in the record's keys and scales them to it;
+    ``linear`` (``kind``, ``n_centers``, ``seed``) are the refits' :func:`fit_linear` options.
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
@@ -109,9 +110,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
         return (*_offset_only(fit, offsets, y, groups, np.arange(len(AXES))), record)
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
-        f = fit_linear(x[train], y[train], kind=kind, n_centers=n_centers, ridge=fit.ridge,
-                       seed=seed, groups=groups[train],
-                       scale_cols=None if scale_cols is None else scale_cols[train])
+        f = fit_linear(x[train], y[train], ridge=fit.ridge, groups=groups[train],
+                       scale_cols=None if scale_cols is None else scale_cols[train], **linear)
         return f.predict(x[test], None if scale_cols is None else scale_cols[test]) - y[test]
 
     r_curve, r_offset = (heldout(f, folds, y.shape, groups=groups, weights=counts)

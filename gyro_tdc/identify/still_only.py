@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 import math
 from typing import Sequence
 
-from gyro_tdc.base import DEG_PER_RAD
+from gyro_tdc.base import DEG_PER_RAD, plain
 from gyro_tdc.data import Coverage, coverage, RATE_THRESHOLD_C_PER_MIN, Run, temperature_rate
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
@@ -124,13 +124,12 @@ class StillReport:
     def to_dict(self) -> dict:
         """Return the report as plain types (the model's ``training`` metrics)."""
         cov, kept = self.coverage, len([s for s in self.stretches if s.kept])
-        return {'still_s': float(self.still_s), 'total_s': float(self.total_s),
-                'stretches': kept, 'dropped': len(self.stretches) - kept,
-                'bin_c': float(cov.bin_c), 'edges_c': [float(v) for v in cov.edges],
-                'minutes': [float(v) for v in cov.minutes],
-                'heating_min': float(cov.heating_min), 'cooling_min': float(cov.cooling_min),
-                'steady_min': float(cov.steady_min), 'motion_topic': self.motion_topic,
-                'advice': list(self.advice)}
+        return plain({'still_s': float(self.still_s), 'total_s': float(self.total_s),
+                      'stretches': kept, 'dropped': len(self.stretches) - kept,
+                      'bin_c': float(cov.bin_c), 'edges_c': cov.edges, 'minutes': cov.minutes,
+                      'heating_min': float(cov.heating_min), 'cooling_min': float(cov.cooling_min),
+                      'steady_min': float(cov.steady_min), 'motion_topic': self.motion_topic,
+                      'advice': self.advice})
 
 
 def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None] | None = None,
@@ -275,17 +274,12 @@ def _advice(cov: Coverage) -> list[str]:
         out.append(f'{park} at temperatures above {math.ceil(hi):g} degC (right after a long '
                    f'drive on a warm day, up to {b:g} degC): the still time ends at '
                    f'{hi:.1f} degC')
-    for i in cov.sparse:
-        a, b = cov.edges[i], cov.edges[i + 1]
-        out.append(f'{park} at {a:g} .. {b:g} degC: only {cov.minutes[i]:.0f} min of still '
-                   'time there')
-    if cov.cooling_min < _FEW_MIN:
-        out.append(f'no cooling still time ({cov.cooling_min:.0f} min): park right after a '
-                   'drive, while the IMU cools')
-    if cov.heating_min < _FEW_MIN:
-        out.append(f'no heating still time ({cov.heating_min:.0f} min): park while the day '
-                   'warms up (morning sun), or power the IMU on and leave it still')
-    return out
+    out += [f'{park} at {cov.edges[i]:g} .. {cov.edges[i + 1]:g} degC: only '
+            f'{cov.minutes[i]:.0f} min of still time there' for i in cov.sparse]
+    return out + [f'no {way} still time ({minutes:.0f} min): {when}' for way, minutes, when in (
+        ('cooling', cov.cooling_min, 'park right after a drive, while the IMU cools'),
+        ('heating', cov.heating_min, 'park while the day warms up (morning sun), or power the '
+         'IMU on and leave it still')) if minutes < _FEW_MIN]
 
 
 def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],

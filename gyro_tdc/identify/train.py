@@ -357,10 +357,8 @@ def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence
     """Add the accelerometer part and the training records, save, return the result."""
     accel_fit = (fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c,
                            min_folds=min_folds) if o.accel else None)
-    if choice is not None:
-        metrics = {**metrics, 'features': choice.to_dict()}
-    model = model.replace(accel=None if accel_fit is None else accel_fit.part,
-                          metrics={**model.metrics, **metrics})
+    model = model.replace(accel=None if accel_fit is None else accel_fit.part, metrics={
+        **model.metrics, **metrics, **({} if choice is None else {'features': choice.to_dict()})})
     return TrainResult(model=model, path=Path(save_model(model, out)), choice=choice,
                        accel=accel_fit, **result)
 
@@ -399,8 +397,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     """
     o = TrainOptions() if options is None else options
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
-    runs: list[Run] = load_runs(bags, bag, log=log)
-    _boards_said(runs, log)
+    runs = _load(bags, bag, log, log)
     if (share := unreferenced_motion(runs)[0]) > MAX_MOVING_SHARE:
         if log is not None:
             log(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
@@ -425,14 +422,20 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                    constant=constant_readings(runs, const))
 
 
-def _boards_said(runs: Sequence[Run], log: Log) -> None:
-    """Warn on ``log`` when the logs name more than one board: one model fits none of them."""
+def _load(bags: Sequence[str | os.PathLike], bag: BagOptions, log: Log, said: Log) -> list[Run]:
+    """
+    Load the bags (what loading says goes to ``said``), one run each.
+
+    Warns on ``log`` when the logs name more than one board: one model fits none of them.
+    """
+    runs = load_runs(bags, bag, log=said)
     boards = Counter(r.info['board'] for r in runs if r.info.get('board'))
     if len(boards) > 1 and log is not None:
         log(f'warning: the logs come from {len(boards)} boards ('
             + '; '.join(f"{b}: {n} log{'s' * (n > 1)}" for b, n in boards.items())
             + '): each board drifts its own way, and one model of them fits none; train '
             'each board apart (gyro-tdc fleet calibrates many)')
+    return runs
 
 
 def _imus(runs: Sequence[Run]) -> dict:
@@ -522,9 +525,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     if runs is None:    # no reference read (the rate is zero while still); the motion veto
         said = None if log is None else (lambda line: log(line.replace(
             'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
-        runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
-                         log=said)
-        _boards_said(runs, log)
+        runs = _load(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)), log, said)
     else:
         runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
     if moving is None and bag.motion_topic:
