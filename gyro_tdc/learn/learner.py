@@ -40,8 +40,7 @@ from gyro_tdc.learn.records import (Entry, held_out_line, keep_power_up, LearnCo
                                     remember)
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.runtime import power_up, POWER_UP_KEY
-from gyro_tdc.runtime.handoff import BLOCK_FIELDS, NO_ACCEL
+from gyro_tdc.runtime import BLOCK_FIELDS, NO_ACCEL, power_up, POWER_UP_KEY
 from gyro_tdc.signal import (break_why, hold_readings, long_enough, SessionTracker, StillWindows,
                              Window)
 import numpy as np

@@ -25,7 +25,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'blockstats': ['default_tolerance', 'STILL_WINDOW_MAX_S'],
     'core': ['CompensatorCore'],
     'flags': ['PASSTHROUGH', 'UPSTREAM'],
-    'handoff': ['power_up', 'POWER_UP_KEY'],
+    'handoff': ['BLOCK_FIELDS', 'NO_ACCEL', 'power_up', 'POWER_UP_KEY'],
     'health': ['frame_mismatch', 'health', 'InputStatus', 'sensor_mismatch', 'upstream_note'],
     'liveness': ['InputRate', 'RateReport'],
     'policy': ['PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CORRECTIONS',
