@@ -153,19 +153,43 @@ def test_bad_driver_options_name_the_option(tmp_path, change, error, needles):
         assert needle in str(err.value)
 
 
-def test_an_mcap_file_cut_off_is_read_to_its_last_chunk_with_a_warning(tmp_path):
-    # The power went: no footer and, as rosbag2 writes it on close, no metadata.yaml.
-    kw = dict(imu_topic='/fmu/out/sensor_gyro',
+TOPICS = dict(imu_topic='/fmu/out/sensor_gyro',
               temperature_topic='/mip/sensor/temperature_statistics')
-    bag = driver_bag(tmp_path / 'px4', n=50000, storage='mcap')       # 1 MiB chunks: 2.5
-    whole = read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp_path / 'a', **kw), **kw)
-    (mcap,) = bag.glob('*.mcap')
-    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size * 3 // 4])
-    mcap.rename(mcap := bag / 'px4_0.mcap')
-    (bag / 'metadata.yaml').unlink()
+
+
+def power_cut(data, folder, size):
+    """Write ``data[:size]`` as a power cut leaves an mcap file: ``NAME_0.mcap``, no metadata."""
+    folder.mkdir()
+    path = folder / f'{folder.name}_0.mcap'
+    path.write_bytes(data[:size])
+    return path
+
+
+def assert_refused_naming(err, bag, mcap, out):
+    """Assert a one-line refusal naming the bag, the file cut off and `mcap recover`."""
+    text = str(err.value)
+    assert text.startswith(f"cannot read bag '{bag}'") and '\n' not in text
+    assert f'{mcap.name} ends without the mcap footer' in text and '`mcap recover`' in text
+    assert not out.exists()
+
+
+@pytest.fixture(scope='module')
+def long_mcap(tmp_path_factory):
+    """Return a 50,000-message driver bag's mcap bytes (5 chunks of 1 MiB) and its read."""
+    tmp = tmp_path_factory.mktemp('long')
+    bag = driver_bag(tmp / 'px4', n=50000, storage='mcap')
+    whole = read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp / 'whole', **TOPICS),
+                     **TOPICS)
+    return next(bag.glob('*.mcap')).read_bytes(), whole
+
+
+def test_an_mcap_file_cut_off_is_read_to_its_last_chunk_with_a_warning(tmp_path, long_mcap):
+    # The power went: no footer and, as rosbag2 writes it on close, no metadata.yaml.
+    data, whole = long_mcap
+    mcap = power_cut(data, tmp_path / 'px4', len(data) * 3 // 4)
     warned = []
-    got = read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp_path / 'b',
-                                 warn=warned.append, **kw), **kw)
+    got = read_bag(normalize_bag(mcap.parent, DriverInputs(**OPTIONS), out=tmp_path / 'b',
+                                 warn=warned.append, **TOPICS), **TOPICS)
     n, m = len(got.imu_t), len(got.temp_t)
     assert 20000 < n < 50000 and 0 < m < len(whole.temp_t)
     assert got.gyro.tobytes() == whole.gyro[:n].tobytes()
@@ -176,12 +200,9 @@ def test_an_mcap_file_cut_off_is_read_to_its_last_chunk_with_a_warning(tmp_path)
     assert line.startswith(f'{mcap.name} ends without the mcap footer') and 'bytes after' in line
 
 
-def test_train_reads_a_cut_driver_bag_and_prints_what_was_lost(tmp_path, capsys):
-    bag = driver_bag(tmp_path / 'px4', n=50000, storage='mcap')
-    (mcap,) = bag.glob('*.mcap')
-    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size * 3 // 4])
-    mcap.rename(bag / 'px4_0.mcap')
-    (bag / 'metadata.yaml').unlink()
+def test_train_reads_a_cut_driver_bag_and_prints_what_was_lost(tmp_path, capsys, long_mcap):
+    data, _ = long_mcap
+    bag = power_cut(data, tmp_path / 'px4', len(data) * 3 // 4).parent
     args = [str(bag), '--imu-topic', '/fmu/out/sensor_gyro', '--temperature-topic',
             '/mip/sensor/temperature_statistics', '--features', 'dT', '--kind', 'poly',
             '--no-accel', '--no-progress', '--out', str(tmp_path / 'model.yaml')]
@@ -192,37 +213,21 @@ def test_train_reads_a_cut_driver_bag_and_prints_what_was_lost(tmp_path, capsys)
     assert (tmp_path / 'model.yaml').exists()
 
 
-@pytest.fixture(scope='module')
-def long_mcap(tmp_path_factory):
-    """Return a 50,000-message driver bag on mcap (5 chunks) and its whole read."""
-    tmp = tmp_path_factory.mktemp('long')
-    bag = driver_bag(tmp / 'px4', n=50000, storage='mcap')
-    kw = dict(imu_topic='/fmu/out/sensor_gyro',
-              temperature_topic='/mip/sensor/temperature_statistics')
-    return bag, read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp / 'whole', **kw),
-                         **kw)
-
-
 @pytest.mark.parametrize('share', [0.001, 0.05, 0.19, 0.21, 0.5, 0.77, 0.95, 0.9999])
 def test_an_mcap_cut_anywhere_reads_a_prefix_or_is_one_line(tmp_path, long_mcap, share):
-    bag, whole = long_mcap
-    data = next(bag.glob('*.mcap')).read_bytes()
-    cut = tmp_path / 'cut'
-    cut.mkdir()
+    data, whole = long_mcap
     size = int(share * len(data))          # 5 chunks of 1 MiB: the first ends near 0.2
-    (cut / 'cut_0.mcap').write_bytes(data[:size])
+    cut = power_cut(data, tmp_path / 'cut', size).parent
     warned = []
     try:
-        out = normalize_bag(cut, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
-                            temperature_topic='/mip/sensor/temperature_statistics',
-                            out=tmp_path / 'read', warn=warned.append)
+        out = normalize_bag(cut, DriverInputs(**OPTIONS), out=tmp_path / 'read',
+                            warn=warned.append, **TOPICS)
     except DatasetError as err:
         # Before the first whole chunk nothing can be read: one line, nothing written.
         assert 'before its first whole chunk' in str(err) and '\n' not in str(err)
         assert share < 0.2 and not (tmp_path / 'read').exists()
         return
-    got = read_bag(out, imu_topic='/fmu/out/sensor_gyro',
-                   temperature_topic='/mip/sensor/temperature_statistics')
+    got = read_bag(out, **TOPICS)
     assert got.gyro.tobytes() == whole.gyro[:len(got.gyro)].tobytes()
     assert got.temp_c.tobytes() == whole.temp_c[:len(got.temp_c)].tobytes()
     (line,) = warned
@@ -251,12 +256,10 @@ def test_a_header_less_reading_of_a_cut_mcap_takes_the_imu_stamp_before_it(tmp_p
                            stamp_field='timestamp', input_frame='frd')
     kw = dict(imu_topic='/gyro', temperature_topic='/temp')
     whole = read_bag(normalize_bag(bag, options, out=tmp_path / 'a', **kw), **kw)
-    (mcap,) = bag.glob('*.mcap')
-    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size * 2 // 3])
-    mcap.rename(bag / 'float_0.mcap')
-    (bag / 'metadata.yaml').unlink()
+    data = next(bag.glob('*.mcap')).read_bytes()
+    cut = power_cut(data, tmp_path / 'cut', len(data) * 2 // 3).parent
     warned = []
-    got = read_bag(normalize_bag(bag, options, out=tmp_path / 'b', warn=warned.append, **kw),
+    got = read_bag(normalize_bag(cut, options, out=tmp_path / 'b', warn=warned.append, **kw),
                    **kw)
     m = len(got.temp_t)
     assert 100 < m < len(whole.temp_t) and len(warned) == 1
@@ -273,32 +276,18 @@ def test_an_mcap_file_cut_in_a_listed_bag_is_one_line_naming_it_and_mcap_recover
     (mcap,) = bag.glob('*.mcap')
     mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size // 2])
     with pytest.raises(DatasetError) as err:
-        normalize_bag(bag, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
-                      temperature_topic='/mip/sensor/temperature_statistics',
-                      out=tmp_path / 'read')
-    text = str(err.value)
-    assert text.startswith(f"cannot read bag '{bag}'") and '\n' not in text
-    assert f'{mcap.name} ends without the mcap footer' in text and '`mcap recover`' in text
-    assert not (tmp_path / 'read').exists()
+        normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp_path / 'read', **TOPICS)
+    assert_refused_naming(err, bag, mcap, tmp_path / 'read')
 
 
-def test_an_mcap_file_damaged_in_its_middle_is_one_line_naming_it(tmp_path):
+def test_an_mcap_file_damaged_in_its_middle_is_one_line_naming_it(tmp_path, long_mcap):
     # Cut off is read; bytes that are no records before the end are refused, as before.
-    bag = driver_bag(tmp_path / 'px4', n=50000, storage='mcap')
-    (mcap,) = bag.glob('*.mcap')
-    data = bytearray(mcap.read_bytes()[:mcap.stat().st_size * 3 // 4])
+    data = bytearray(long_mcap[0][:len(long_mcap[0]) * 3 // 4])
     data[len(data) // 3:len(data) // 3 + 64] = b'\xff' * 64
-    mcap.unlink()
-    (mcap := bag / 'px4_0.mcap').write_bytes(bytes(data))
-    (bag / 'metadata.yaml').unlink()
+    mcap = power_cut(bytes(data), tmp_path / 'px4', len(data))
     with pytest.raises(DatasetError) as err:
-        normalize_bag(bag, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
-                      temperature_topic='/mip/sensor/temperature_statistics',
-                      out=tmp_path / 'read')
-    text = str(err.value)
-    assert text.startswith(f"cannot read bag '{bag}'") and '\n' not in text
-    assert f'{mcap.name} ends without the mcap footer' in text and '`mcap recover`' in text
-    assert not (tmp_path / 'read').exists()
+        normalize_bag(mcap.parent, DriverInputs(**OPTIONS), out=tmp_path / 'read', **TOPICS)
+    assert_refused_naming(err, mcap.parent, mcap, tmp_path / 'read')
 
 
 def test_bno055_below_zero_is_read_signed(tmp_path):
