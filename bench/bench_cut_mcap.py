@@ -74,15 +74,20 @@ def _among(got, ref) -> bool:
     return True
 
 
-def judge(bag: Path, ref, cut_at: int, size: int, bare: bool) -> tuple[str, float]:
-    """Return the outcome of reading one cut copy and the share of IMU messages lost."""
-    why = missing(bag) if bare else None          # what the read must warn of first
+def judge(bag: Path, ref, cut_at: int, size: int, bare: bool) -> tuple[str, float, object]:
+    """Return the outcome of reading one cut copy, the share of IMU messages lost, the read."""
     try:
         got = read_bag(bag)
     except DatasetError as exc:
-        return ('refused' if '\n' not in str(exc) else 'defect: a refusal of lines'), 1.0
+        return ('refused' if '\n' not in str(exc) else 'defect: a refusal of lines'), 1.0, None
     except Exception as exc:  # noqa: B902 (any other exception is the defect counted)
-        return f'defect: {type(exc).__name__}', 1.0
+        return f'defect: {type(exc).__name__}', 1.0, None
+    return (*_outcome(bag, got, ref, cut_at, size, bare), got)
+
+
+def _outcome(bag: Path, got, ref, cut_at: int, size: int, bare: bool) -> tuple[str, float]:
+    """Return the outcome of a read of one cut copy and the share of IMU messages lost."""
+    why = missing(bag) if bare else None          # what the read must warn of first
     n, m = len(got.imu_t), len(got.temp_t)
     if got.storage == 'sqlite3':
         same, warned = _among(got, ref), True
@@ -161,12 +166,8 @@ def main(argv=None) -> int:
                         meta = (bag / 'metadata.yaml').read_bytes()
                         (bag / 'metadata.yaml').write_bytes(meta[:rng.integers(0, len(meta))])
                     (bag / path.name).rename(bag / f'{bag.name}_0{path.suffix}')
-                outcome, lost = judge(bag, ref, at, len(raw), bare)
+                outcome, lost, plain = judge(bag, ref, at, len(raw), bare)
                 if args.driver:
-                    try:
-                        plain = read_bag(bag)
-                    except DatasetError:
-                        plain = None
                     seen = judge_driver(bag, Path(tmp) / f'driver{k}_{j}', plain)
                     driver[seen.split(':')[0]] = driver.get(seen.split(':')[0], 0) + 1
                     if seen.startswith('defect'):
