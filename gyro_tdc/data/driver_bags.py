@@ -27,23 +27,20 @@ fields the same way (:mod:`gyro_tdc.data.field_paths`), so a model is trained on
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.base import INPUT_FRAMES
-from gyro_tdc.data.bag.codec import IMU_TYPE, jazzy
-from gyro_tdc.data.bag.columnar import open_bag, readable, rebuild
-from gyro_tdc.data.bag.metadata import locate, Unfit
-from gyro_tdc.data.bag.reader import READ_ERRORS, with_data
+from gyro_tdc.data.bag.codec import IMU_TYPE
+from gyro_tdc.data.bag.metadata import Unfit
+from gyro_tdc.data.bag.reader import READ_ERRORS, topic_messages
 from gyro_tdc.data.bag.storage_mcap import cut_off
 from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.field_paths import (normalize_type, rate_fields, stamp_seconds,
                                        temperature_fields, unquirk)
 from gyro_tdc.errors import ConfigError, DatasetError, one_line
 import numpy as np
-from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Nodetype
 
 __all__ = ['DriverInputs', 'field_table', 'normalize_bag']
@@ -124,54 +121,6 @@ def _connection(every: Sequence[Any], topic: str, want: str | None, option: str)
     return conns[0]
 
 
-class _Raw:
-    """The raw messages a columnar read hands over (``Bag.feed``'s ``out``), in bag order."""
-
-    roles, floating = ('imu', 'temperature'), False
-
-    def __init__(self) -> None:
-        self.n_main, self.keyed = 0, []          # (main messages before it, 0 | 1, role, raw)
-
-    def add(self, role: str, buf: bytes, lengths: Sequence[int], logs: Any,
-            before: Any = None) -> None:
-        ends = np.cumsum(lengths).tolist()
-        raw = [bytes(buf[e - n:e]) for e, n in zip(ends, np.asarray(lengths).tolist())]
-        if role == 'imu':             # a reading with k main messages before it goes first
-            self.keyed += [(k, 1, role, m) for k, m in enumerate(raw, self.n_main)]
-            self.n_main += len(raw)
-        else:
-            self.keyed += [(k, 0, role, m) for k, m in zip(np.asarray(before).tolist(), raw)]
-
-
-@contextmanager
-def _source(path: Path, topics: Sequence[str], warn: Callable[[str], Any]
-            ) -> Iterator[tuple[Any, list, Callable]]:
-    """
-    Yield a bag's typestore, connections and ``messages(imu, temperature)`` in bag order.
-
-    rosbags reads it. A recording the power cut (no metadata.yaml, an mcap file without its
-    footer) is read to the file's last whole chunk by the columnar read, with a warning
-    counting the bytes lost; a file cut in a bag that metadata.yaml lists is refused (the
-    read by field has no loss policy).
-    """
-    bag, paths = locate(path)
-    if paths is None or not cut_off(paths):
-        with readable(path) as opened, AnyReader([opened], default_typestore=jazzy()) as r:
-            yield r.typestore, r.connections, lambda *conns: (
-                (c, raw) for c, _, raw in with_data(r.messages(connections=conns), path))
-        return
-    with open_bag(bag, rebuild(bag, paths)) as opened:
-        def messages(imu: Any, temp: Any) -> Iterator[tuple[Any, bytes]]:
-            raw = _Raw()
-            opened.feed({'imu': [imu], 'temperature': [temp]}, raw, lambda _n: None, 4096)
-            for warning in opened.warnings:
-                warn(warning)
-            conn = {'imu': imu, 'temperature': temp}
-            return ((conn[role], m) for *_, role, m in sorted(raw.keyed, key=lambda x: x[:2]))
-        yield (opened.typestore({c.msgtype for c in opened.conns if c.topic in topics}),
-               opened.conns, messages)
-
-
 def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
                   temperature_topic: str, out: str | Path,
                   warn: Callable[[str], Any] = lambda _line: None) -> Path:
@@ -208,7 +157,8 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
     """
     path = Path(path)
     try:
-        with _source(path, (imu_topic, temperature_topic), warn) as (store, conns, messages):
+        with topic_messages(path, (imu_topic, temperature_topic), warn) as (
+                store, conns, messages):
             fields_of = field_table(store)
             imu_conn = _connection(conns, imu_topic, inputs.imu_type, '--imu-type')
             temp_conn = _connection(conns, temperature_topic, inputs.temperature_type or None,
@@ -218,7 +168,7 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
             value, tstamp = temperature_fields(temp_conn.msgtype, inputs, fields_of, _option)
             imu_t, gyro, accel, temp_t, temp_c = [], [], [], [], []
             frame_id, gyro_cov, accel_cov = 'imu_link', None, (-1.0, 0.0, 0.0)
-            for conn, raw in messages(imu_conn, temp_conn):
+            for conn, _, raw in messages(imu_conn, temp_conn):
                 msg = store.deserialize_cdr(raw, conn.msgtype)
                 if conn is imu_conn:
                     if not imu_t and hasattr(msg, 'header'):

@@ -27,14 +27,12 @@ from pathlib import Path
 from typing import Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
-from gyro_tdc.data.bag.columnar import readable
-from gyro_tdc.data.bag.metadata import describe
-from gyro_tdc.data.bag.reader import READ_ERRORS, with_data
+from gyro_tdc.data.bag.metadata import describe, Unfit
+from gyro_tdc.data.bag.reader import READ_ERRORS, topic_messages
 from gyro_tdc.data.field_paths import reader as field_reader, stamp_seconds
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from rosbags.highlevel import AnyReader
 
 __all__ = ['MOTION_TYPES', 'MotionReports', 'ODOMETRY_TYPE', 'TWIST_STAMPED_TYPE',
            'TWIST_TYPE', 'encode_twists', 'read_motion']
@@ -87,8 +85,11 @@ def read_motion(path: str | Path, topic: str) -> MotionReports:
     """
     bag = Path(path)
     try:
-        with readable(bag) as opened, AnyReader([opened], default_typestore=jazzy()) as reader:
-            topics = {name: (t.msgtype or '?', t.msgcount) for name, t in reader.topics.items()}
+        with topic_messages(bag, (topic,)) as (store, conns, messages):
+            topics: dict[str, tuple[str, int]] = {}
+            for c in conns:                 # as rosbags' AnyReader.topics has them
+                msgtype, n = topics.get(c.topic, (c.msgtype, 0))
+                topics[c.topic] = (msgtype if msgtype == c.msgtype else '?', n + c.msgcount)
             if topic not in topics:
                 raise DatasetError(f'Bag {str(bag)!r} has no motion topic {topic!r}; topics '
                                    f'present: {describe(topics)}.')
@@ -96,16 +97,15 @@ def read_motion(path: str | Path, topic: str) -> MotionReports:
             if msgtype not in MOTION_TYPES:
                 raise DatasetError(f'Motion topic {topic!r} in bag {str(bag)!r} has type '
                                    f'{msgtype!r}, expected one of {", ".join(MOTION_TYPES)}.')
-            conns = [c for c in reader.connections if c.topic == topic]
             stamps, rows, twist_of = [], [], field_reader(_TWIST_PATHS[msgtype])
-            for conn, log_ns, raw in with_data(reader.messages(connections=conns), bag):
-                msg = reader.deserialize(raw, conn.msgtype)
+            for conn, log_ns, raw in messages(*(c for c in conns if c.topic == topic)):
+                msg = store.deserialize_cdr(raw, conn.msgtype)
                 stamps.append(log_ns * 1e-9 if msgtype == TWIST_TYPE
                               else stamp_seconds('time', msg.header.stamp))
                 tw = twist_of(msg)
                 rows.append((tw.linear.x, tw.linear.y, tw.linear.z,
                              tw.angular.x, tw.angular.y, tw.angular.z))
-    except READ_ERRORS as err:
+    except (*READ_ERRORS, Unfit) as err:
         raise DatasetError(f'Cannot read motion topic {topic!r} of bag {str(bag)!r}: '
                            f'{one_line(err)}') from err
     if not stamps:

@@ -26,6 +26,7 @@ columns sized by the counts of ``metadata.yaml``, checked first
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import partial
 from itertools import islice
@@ -48,7 +49,8 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 import yaml
 
-__all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA', 'with_data']
+__all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'topic_messages', 'VIA',
+           'with_data']
 
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
 # recycled by the allocator, large enough to amortise the per-block checks.
@@ -70,6 +72,60 @@ def with_data(messages: Iterable[tuple[Any, int, Any]],
             raise DatasetError(f'cannot read bag {str(bag)!r}: a message on {conn.topic!r} '
                                f'has no data (a damaged file).')
         yield conn, ns, raw
+
+
+class _Raw:
+    """The raw messages a columnar read hands over (``Bag.feed``'s ``out``), in bag order."""
+
+    floating = False
+
+    def __init__(self, conns: Sequence[Any]) -> None:
+        self.conn = dict(zip(('imu', 'temperature'), conns))     # the first one is the main
+        self.roles = tuple(self.conn)
+        self.n_main, self.keyed = 0, []      # (main messages before it, 0 | 1, conn, ns, raw)
+
+    def add(self, role: str, buf: bytes, lengths: Sequence[int], logs: Logs,
+            before: Any = None) -> None:
+        ends = np.cumsum(lengths).tolist()
+        raw = [bytes(buf[e - n:e]) for e, n in zip(ends, np.asarray(lengths).tolist())]
+        ns = np.asarray(logs() if callable(logs) else logs).tolist()
+        if role == 'imu':             # a message with k main messages before it goes first
+            keys = [(k, 1) for k in range(self.n_main, self.n_main + len(raw))]
+            self.n_main += len(raw)
+        else:
+            keys = [(k, 0) for k in np.asarray(before).tolist()]
+        self.keyed += [(*k, self.conn[role], t, m) for k, t, m in zip(keys, ns, raw)]
+
+
+@contextmanager
+def topic_messages(path: str | os.PathLike, topics: Sequence[str],
+                   warn: Callable[[str], Any] = lambda _line: None
+                   ) -> Iterator[tuple[Any, list, Callable]]:
+    """
+    Yield a bag's typestore, connections and ``messages(*connections)`` in bag order.
+
+    ``messages`` yields ``(connection, log time ns, raw)`` of one or two connections of
+    ``topics``. rosbags reads the bag. A recording the power cut (no metadata.yaml, an mcap
+    file without its footer) is read to the file's last whole chunk by the columnar read,
+    ``warn`` given a warning counting the bytes lost; a file cut in a bag that metadata.yaml
+    lists is refused (these reads have no loss policy).
+    """
+    bag, paths = metadata.locate(path)
+    if paths is None or not cut_off(paths):
+        with columnar.readable(path) as opened, \
+                AnyReader([opened], default_typestore=jazzy()) as r:
+            yield r.typestore, r.connections, lambda *conns: with_data(
+                r.messages(connections=conns), path)
+        return
+    with columnar.open_bag(bag, columnar.rebuild(bag, paths)) as opened:
+        def messages(*conns: Any) -> Iterator[tuple[Any, int, bytes]]:
+            raw = _Raw(conns)
+            opened.feed({role: [c] for role, c in raw.conn.items()}, raw, lambda _n: None, 4096)
+            for warning in opened.warnings:
+                warn(warning)
+            return (m[2:] for m in sorted(raw.keyed, key=lambda x: x[:2]))
+        yield (opened.typestore({c.msgtype for c in opened.conns if c.topic in topics}),
+               opened.conns, messages)
 
 
 @dataclass(frozen=True)

@@ -75,3 +75,26 @@ def test_a_motion_message_without_data_is_one_line(tmp_path):
     with pytest.raises(DatasetError, match=rf"^cannot read bag '{bag}': a message on '/cmd_vel' "
                                            r'has no data \(a damaged file\)\.$'):
         read_motion(bag, '/cmd_vel')
+
+
+def test_a_motion_topic_of_an_mcap_the_power_cut_reads_to_its_last_chunk(tmp_path):
+    # No footer and no metadata.yaml, as a power cut leaves a recording: the motion topic is
+    # read as the gyro is, up to the file's last whole chunk (the loss is the gyro read's to
+    # say); before that every report is the whole recording's.
+    n = 40000
+    t = np.arange(n) * 0.01
+    twist = np.random.default_rng(5).normal(size=(n, 6))
+    bag = tmp_path / 'bag'
+    write_bag(bag, imu_t=t, gyro=np.zeros((n, 3)), accel=np.zeros((n, 3)), temp_t=t[::100],
+              temp_c=np.full(n // 100, 20.0), storage='mcap',
+              extra=[('/cmd_vel', TWIST_TYPE, t + 0.005, encode_twists(twist))])
+    whole = read_motion(bag, '/cmd_vel')
+    data = (bag / 'bag.mcap').read_bytes()
+    cut = tmp_path / 'cut'
+    cut.mkdir()
+    (cut / 'cut_0.mcap').write_bytes(data[:len(data) * 3 // 4])
+    got = read_motion(cut, '/cmd_vel')
+    k = len(got.t)
+    assert n // 4 < k < n
+    assert got.t.tobytes() == whole.t[:k].tobytes()
+    assert got.twist.tobytes() == whole.twist[:k].tobytes()
