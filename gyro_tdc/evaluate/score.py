@@ -260,19 +260,17 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     check_policy(out_of_range)
     const = _constant(run)
     parts = split_sessions([run], sessions, session_gap_s).runs
-    whole, summary = run, None
     bounds = np.cumsum([0] + [len(p) for p in parts])
-
-    # The still stretches: the still test's gap rule, and each session's end.
-    spans = None if still is None else stretch_edges(still, np.diff(run.t), auto_window(run.t),
-                                                     bounds[1:-1] - 1)
+    whole, summary, spans = run, None, None
+    if still is not None:
+        # The still stretches: the still test's gap rule, and each session's end.
+        spans = stretch_edges(still, np.diff(run.t), auto_window(run.t), bounds[1:-1] - 1)
+        summary = _still_summary(run, still, bounds, spans)
+        whole, reanchor_s = rows_of(run, still), 0.0
 
     def pick(x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return what is scored of a rate: the still samples, each session anchored."""
         return x if still is None else _anchor_first_still(x, spans, bounds)[still]
-    if still is not None:
-        summary = _still_summary(run, still, bounds, spans)
-        whole, reanchor_s = rows_of(run, still), 0.0
     raw = score(pick(run.omega), whole, allan=still is None)
     const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
@@ -314,21 +312,15 @@ def still_rows(run: Run) -> NDArray[np.bool_] | None:
     return find_still([run])[0].mask if moving else None
 
 
-def _stretches(spans: tuple, a: int, b: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Return the starts and stops of the still stretches ``spans`` within samples ``a:b``."""
-    starts, stops = spans
-    keep = (starts >= a) & (starts < b)
-    return starts[keep], stops[keep]
-
-
 def _anchor_first_still(x: NDArray[np.float64], spans: tuple,
                         bounds: NDArray[np.int64]) -> NDArray[np.float64]:
     """Return ``x`` less, per session, its mean over the session's first still stretch."""
     out = np.array(x, dtype=np.float64, copy=True)
-    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        starts, stops = _stretches(spans, a, b)
-        if starts.size:
-            out[a:b] -= out[starts[0]:stops[0]].mean(axis=0)
+    starts, stops = spans
+    first = np.searchsorted(starts, bounds).tolist()    # session i: stretches first[i]:first[i+1]
+    for a, b, k, end in zip(bounds[:-1].tolist(), bounds[1:].tolist(), first, first[1:]):
+        if k < end:
+            out[a:b] -= out[starts[k]:stops[k]].mean(axis=0)
     return out
 
 
@@ -352,7 +344,8 @@ def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]
         """Return the figures of samples ``a:b``: counted, or (``figures``) summed."""
         if figures is None:
             n = int(np.count_nonzero(still[a:b]))
-            figures = {'samples': n, 'stretches': int(_stretches(spans, a, b)[0].size),
+            figures = {'samples': n,
+                       'stretches': int(np.diff(np.searchsorted(spans[0], [a, b]))[0]),
                        'total_samples': b - a,
                        'still_s': n * dt,           # a logging gap is no still time
                        'total_s': float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0}
@@ -420,12 +413,12 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
 
     """
     check_policy(out_of_range)
-    o = BagOptions() if bag is None else bag
+    o = with_accel(bag)
     found = find_bags(bags) if found is None else found
     paths = [p for p, _ in found]
     labels = dict(zip(map(str, paths), bag_labels(paths)))
     results, unscored = [], []
-    for run in iter_runs(bags, with_accel(bag), log=log, found=found):   # unreadable skipped
+    for run in iter_runs(bags, o, log=log, found=found):   # unreadable skipped
         held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters

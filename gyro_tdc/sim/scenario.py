@@ -150,15 +150,13 @@ class _Checker(FieldChecker):
 
     def effects(self, path: str, x: Any) -> dict[str, bool]:
         if isinstance(x, (list, tuple)):
-            for e in x:
-                if e not in EFFECT_IDS:
-                    raise self.fail(path, 'effect ids from ' + ', '.join(EFFECT_IDS), e)
+            if unknown := [e for e in x if e not in EFFECT_IDS]:
+                raise self.fail(path, 'effect ids from ' + ', '.join(EFFECT_IDS), unknown[0])
             return {k: k in x for k in EFFECT_IDS}
         if isinstance(x, Mapping):
-            for k in x:
-                if k not in EFFECT_IDS:
-                    raise self.fail(f'{path}.{k}', 'an effect id (' + ', '.join(EFFECT_IDS)
-                                    + ')', k)
+            if unknown := [k for k in x if k not in EFFECT_IDS]:
+                raise self.fail(f'{path}.{unknown[0]}', 'an effect id ('
+                                + ', '.join(EFFECT_IDS) + ')', unknown[0])
             return {k: self.boolean(x.get(k), f'{path}.{k}') for k in EFFECT_IDS}
         raise self.fail(path, 'a list of effect ids or a mapping id -> bool', x)
 
@@ -216,9 +214,8 @@ def _profile(chk: _Checker, raw: Any) -> chamber.Profile:
         kind = seg['kind']
         make, fields = _SEGMENTS[kind]
         chk.mapping(where, seg, ('kind',) + tuple(fields))
-        for key in fields:
-            if key not in seg:
-                raise chk.fail(f'{where}.{key}', f'a value (required by kind {kind!r})', None)
+        if missing := [key for key in fields if key not in seg]:
+            raise chk.fail(f'{where}.{missing[0]}', f'a value (required by kind {kind!r})', None)
         built.append(_points(chk, where, seg) if kind == 'points' else make(
             *(_KINDS[bound](chk, f'{where}.{key}', seg[key]) for key, bound in fields.items())))
     try:

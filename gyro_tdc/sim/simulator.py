@@ -258,11 +258,10 @@ def _drift(g: GyroSpec, on: Mapping[str, bool], coefficients: Mapping[str, NDArr
 def _add_noise(gyro: NDArray[np.float64], nz: NoiseSpec,
                rng: Mapping[str, np.random.Generator], rate: float) -> NDArray[np.float64]:
     """Add the enabled noise processes to ``gyro`` in place; return the white noise std."""
-    density = _vec(nz.arw_dps_per_rt_hz, RAD_PER_DEG)
-    white_std = density * math.sqrt(rate) if nz.enabled else np.zeros(3)
     if not nz.enabled:
-        return white_std
-    n, dt = gyro.shape[0], 1.0 / rate
+        return np.zeros(3)
+    density = _vec(nz.arw_dps_per_rt_hz, RAD_PER_DEG)
+    white_std, n, dt = density * math.sqrt(rate), gyro.shape[0], 1.0 / rate
     if np.any(white_std > 0.0):
         gyro += white_noise(rng['white'], n, density=density, rate_hz=rate)
     if np.any(_vec(nz.bias_instability_dps) > 0.0):
@@ -326,11 +325,15 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     on = {k: k in g.effects for k in EFFECT_IDS}
     tau_die = sc.thermal.tau_die_s if on['lag'] else 0.0
     duration = sc.duration_s
-    # A vehicle day: the schedule first; the set point is the ambient plus self-heating.
-    profile, legs, heating = sc.profile, None, None
+    imu_t = _stamps(duration, rate)
+    # A vehicle day: the schedule, the set point (the ambient plus self-heating) and the
+    # motion, whose true body rate replaces the rate table.
+    profile, motion = sc.profile, None
     if sc.vehicle is not None:
         legs = plan_legs(sc.vehicle, duration, rng['vehicle'])
         profile, heating = heated_profile(sc.profile, sc.vehicle, legs, duration)
+        motion = vehicle_motion(sc.vehicle, legs, imu_t, rng['vehicle'],
+                                gravity_mps2=sc.accel.gravity_mps2, heating=heating)
 
     # Thermal chain on the internal grid, then onto the IMU stamps.
     thermal = simulate_thermal(
@@ -338,7 +341,6 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
         tau_air_s=sc.thermal.tau_air_s, tau_package_s=sc.thermal.tau_package_s,
         tau_die_s=tau_die, thermometer_location=sc.thermometer.location,
         thermometer_tau_s=sc.thermometer.tau_s)
-    imu_t = _stamps(duration, rate)
     die = thermal.at('die_c', imu_t)
     die_rate = thermal.at('die_rate_c_per_s', imu_t)
     d_t = die - g.t_ref_c
@@ -351,10 +353,7 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     keep = ref_t < duration
     ref_t, ref = ref_t[keep], ref[keep]
     omega_ref = _held(ref_t, ref, imu_t)
-    motion = None
-    if legs is not None:     # the vehicle's true body rate replaces the rate table
-        motion = vehicle_motion(sc.vehicle, legs, imu_t, rng['vehicle'],
-                                gravity_mps2=sc.accel.gravity_mps2, heating=heating)
+    if motion is not None:
         ref_t, ref, omega_ref = imu_t, motion.rate, motion.rate
     drift = _drift(g, on, coefficients, imu_t, d_t, die_rate, omega_ref)
     gyro = omega_ref + drift
