@@ -33,7 +33,7 @@ from gyro_tdc.base import G0, MG, plain, RAD_PER_DEG
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify.axes import constant_note
-from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
+from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C, span
 from gyro_tdc.identify.linear import fit_linear
 from gyro_tdc.identify.power_cycles import check_sessions, MIN_FOLDS, SLOW_CURVE_S, told_alone
 from gyro_tdc.identify.tau import run_state
@@ -304,12 +304,10 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
     The force's block means and scatter are centred on the segment's first row (gravity
     dwarfs the scatter), summed in passes: no full copy of the force.
     """
-    segs, lo, hi = [], math.inf, -math.inf
+    segs = []
     for k, (r, d) in enumerate(usable):
         state = run_state(model.thermal, r)       # the gyro fit's, not computed again
         x = batch_features(ids, r.t, r.temp, t0=model.t0_c, params=par, state=state)
-        lo = min(lo, float(np.min(state, where=d.mask, initial=np.inf)))
-        hi = max(hi, float(np.max(state, where=d.mask, initial=-np.inf)))
         for s in np.unique(d.segment[d.mask]):     # the segments with still samples
             idx = np.flatnonzero(d.segment == s)
             grid = BlockGrid(idx.size, block, take=idx)
@@ -317,7 +315,7 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
             segs.append({'run': k, 'x': grid.mean(x), 'y': ya, 'n': grid.counts, 'within': within,
                          't': grid.mean(r.t), 'temp': grid.mean(r.temp),
                          'state': grid.mean(state)})
-    return segs, (lo, hi)
+    return segs, span([run_state(model.thermal, r)[d.mask] for r, d in usable])
 
 
 def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
@@ -361,8 +359,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     par = {**resolve_params(ids, {k: v for k, v in model.effect_params.items() if k in ids}),
            **({} if th.kind == 'none' else {'lag': {'tau_s': th.tau_total_s}})}
     out.samples = n_static = sum(int(d.mask.sum()) for _, d in usable)
-    segs, span = _segment_blocks(usable, model, ids, par,
-                                 block_length(n_static, max_rows, at_most=True))
+    segs, range_c = _segment_blocks(usable, model, ids, par,
+                                    block_length(n_static, max_rows, at_most=True))
     # Coverage of the still data from its block means (the minutes per bin are the same).
     out.coverage = coverage([Run(sg['t'], sg['temp'], np.zeros((sg['t'].size, 3)),
                                  np.zeros((sg['t'].size, 3))) for sg in segs], bin_c=bin_c)
@@ -370,8 +368,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     widest = curve_untold(np.concatenate([sg['state'] for sg in segs]), groups)
     out.note = (f'too few still samples ({n_static}, need at least {MIN_SAMPLES})'
                 if n_static < MIN_SAMPLES else
-                f'the still data span {span[1] - span[0]:.3g} degC of the model temperature '
-                f'(need at least {MIN_SPAN_C} degC)' if span[1] - span[0] < MIN_SPAN_C else
+                f'the still data span {range_c[1] - range_c[0]:.3g} degC of the model temperature '
+                f'(need at least {MIN_SPAN_C} degC)' if range_c[1] - range_c[0] < MIN_SPAN_C else
                 f'no still segment spans {MIN_SESSION_SPAN_C:g} degC of the model temperature '
                 f'of its own (widest {widest:.3g} degC of {len(segs)}): with a constant per '
                 'segment, a curve is told only within one' if widest is not None else '')
@@ -405,7 +403,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         'ridge': float(lf.ridge), 'orientation_changes': [c.to_dict() for c in out.changes],
         **({} if out.check is None else {'held_out': out.check})}
     part = CompensationModel.network(
-        kind, ids, par, model.t0_c, lf.norm, coef, temp_range_c=span,
+        kind, ids, par, model.t0_c, lf.norm, coef, temp_range_c=range_c,
         residual_var=out.train_bs, frame_id=model.frame_id, sensor_id=model.sensor_id,
         metrics=metrics, created={}, thermal=th)
     try:

@@ -225,14 +225,6 @@ def still_only_runs(runs: Sequence[Run], task: tuple[str, str] = ('discover', 'd
                   'the motion is no drift')
 
 
-def _outliers(means: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Return the stretches whose mean (S, 3, rad/s) departs from the others' (robust)."""
-    if means.shape[0] < 4:
-        return np.zeros(means.shape[0], dtype=bool)
-    dev = np.abs(means - np.median(means, axis=0))
-    return np.any(dev > np.maximum(OUTLIER_SIGMAS * mad_sigma(means), OUTLIER_FLOOR_RAD_S), axis=1)
-
-
 def still_report(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
                  stretches: list, *, bin_c: float, motion_topic: str = '',
                  rejected: dict | None = None) -> StillReport:
@@ -297,7 +289,11 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
     """
     model = fit_model(runs, options, rows=rows, sessions=labels)
     means = _stretch_means(model, runs, spans, labels)
-    bad = _outliers(means)
+    if means.shape[0] < 4:          # too few stretches to tell one that departs
+        return model, means, np.zeros(means.shape[0], dtype=bool)
+    # An outlier departs from the others' mean (robust), by OUTLIER_SIGMAS and the floor.
+    dev = np.abs(means - np.median(means, axis=0))
+    bad = np.any(dev > np.maximum(OUTLIER_SIGMAS * mad_sigma(means), OUTLIER_FLOOR_RAD_S), axis=1)
     run_of = np.array([i for i, _, _ in spans], dtype=np.int64)
     for i in np.unique(run_of[bad]):    # a run keeps its stops when all look like turns
         if bad[run_of == i].all():

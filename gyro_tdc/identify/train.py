@@ -457,25 +457,6 @@ def _drop_curve(fo: FitOptions, choice: FeatureChoice | None, log: Log, why: str
         choice, dropped=f'{dropped}, the model keeps the offset only')
 
 
-def _curve_or_offsets(fit: Callable, fo: FitOptions, choice: FeatureChoice | None,
-                      log: Log) -> tuple:
-    """
-    Return ``fit(fo)``, or the offsets alone where loading would refuse its curve.
-
-    Such a curve of stops is beyond belief: the offset-only model does no harm. The first
-    fit's dropped stretches stay dropped; the choice and ``log`` say why.
-    """
-    model, means, bad = fit(fo)
-    try:
-        check_model(model)
-    except ModelFileError as exc:
-        fo, choice = _drop_curve(fo, choice, log, 'the curve of the stops would be refused '
-                                 f'on loading ({exc}):', 'its curve would be refused on loading')
-        model, means, again = fit(fo)
-        bad |= again
-    return model, means, bad, choice
-
-
 def _one_power_cycle(runs: Sequence[Run], spans: Sequence[tuple[int, int, int]],
                      labels: Sequence[int], fo: FitOptions, choice: FeatureChoice | None,
                      log: Log) -> tuple[FitOptions, FeatureChoice | None]:
@@ -569,7 +550,8 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
           if o.t0 is None else o.t0)
     subs = ([rows_of(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
             if o.auto else [])            # the still rows, for the choice of features
-    fo, choice = _features(o, subs, runs, t0, log, frame_id=str(
+    # A curve of stops needs two power cycles to judge it.
+    fo, choice = _features(o, subs, runs, t0, log, min_folds=MIN_FOLDS, frame_id=str(
         runs[0].info.get('frame_id') or 'imu_link'), created={
             'command': command, 'bags': bags, 'still_only': True, **_imus(runs)})
     spans = [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
@@ -579,10 +561,15 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
         return model, means, bad
 
-    # A curve of stops needs two power cycles to judge it.
     fo, choice = _one_power_cycle(runs, spans, labels, fo, choice, log)
-    model, means, bad, choice = _curve_or_offsets(fit, replace(fo, min_folds=MIN_FOLDS),
-                                                  choice, log)
+    model, means, bad = fit(fo)
+    try:
+        check_model(model)
+    except ModelFileError as exc:    # beyond belief: the offsets alone (dropped stay dropped)
+        fo, choice = _drop_curve(fo, choice, log, 'the curve of the stops would be refused '
+                                 f'on loading ({exc}):', 'its curve would be refused on loading')
+        model, means, again = fit(fo)
+        bad |= again
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * DEG_PER_RAD for v in mu))

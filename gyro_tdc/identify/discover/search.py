@@ -295,7 +295,29 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
             break
         step, model, adev = _add_best(data, model, rnd, passing, o, adev)
         steps.append(step)
-    return _result(data, model, rnd, steps, unident, collinear, notes, cand_ids, base_ids, o, adev)
+    # The result of the last round (the final model's): gaps, maps and the record.
+    effects = model.effects
+    unident.update({eid: unidentifiable(eid, 'on this data its feature is a combination of the '
+                                        f'effects of the model ({", ".join(effects)})')
+                    for eid in collinear if eid not in effects and eid not in unident})
+    adev = (adev or residual_adev(data, model, rnd.coef)) if o.allan else _NO_ADEV
+    folds = ('leave-one-run-out' if data.n_runs >= 2
+             else f'{len(rnd.folds)} blocked folds, buffer {rnd.buffer} blocks')
+    settings = {k: getattr(o, k) for k in ('alpha', 'min_heldout', 'min_effect', 'alias_margin',
+                                           'alias_corr')}
+    settings.update(folds=folds, block_s=float(o.block_s), block_mean_s=float(data.block_eff_s))
+    return DiscoveryResult(
+        base_effects=base_ids, final_effects=effects,
+        params={k: dict(v) for k, v in model.params.items() if k in effects and k in _TIMED},
+        noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
+        white_noise_dps=data.white * DEG, block_s=float(o.block_s), t0_c=float(data.t0),
+        steps=tuple(steps), notes=tuple(notes), settings=settings, blocks=data.K,
+        unidentifiable=tuple(unident[e] for e in EFFECTS if e in unident and e in cand_ids),
+        candidates=tuple(x[0] for x in rnd.results), maps=residual_maps(data, rnd.resid),
+        gap_dps=gap(data, rnd.resid), heldout_gap_dps=gap(data, rnd.heldout),
+        coef=_coef_dict(data, model, rnd.coef), runs=tuple(x.name for x in data.runs),
+        adev_tau_s=adev[0], adev_dps=adev[1],
+        thermal=steps[-1].thermal if steps else _thermal_state(data, model))
 
 
 def _score_round(data: BlockData, model: LinearModel, todo: Sequence[str], o: DiscoverOptions,
@@ -367,34 +389,6 @@ def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
         candidates=tuple(x[0] for x in rnd.results), maps_before=residual_maps(data, rnd.resid),
         maps_after=residual_maps(data, r_n), adev_tau_s=before[0], adev_before_dps=before[1],
         adev_after_dps=after[1], best=best, thermal=_thermal_state(data, new)), new, after
-
-
-def _result(data: BlockData, model: LinearModel, rnd: _Round, steps: list, unident: dict,
-            collinear: list, notes: list, cand_ids: tuple, base_ids: tuple,
-            o: DiscoverOptions, adev: tuple | None) -> DiscoveryResult:
-    """Return the result of the last round (the final model's): gaps, maps and the record."""
-    effects = model.effects
-    unident.update({eid: unidentifiable(eid, 'on this data its feature is a combination of the '
-                                        f'effects of the model ({", ".join(effects)})')
-                    for eid in collinear if eid not in effects and eid not in unident})
-    adev = (adev or residual_adev(data, model, rnd.coef)) if o.allan else _NO_ADEV
-    folds = ('leave-one-run-out' if data.n_runs >= 2
-             else f'{len(rnd.folds)} blocked folds, buffer {rnd.buffer} blocks')
-    settings = {k: getattr(o, k) for k in ('alpha', 'min_heldout', 'min_effect', 'alias_margin',
-                                           'alias_corr')}
-    settings.update(folds=folds, block_s=float(o.block_s), block_mean_s=float(data.block_eff_s))
-    return DiscoveryResult(
-        base_effects=base_ids, final_effects=effects,
-        params={k: dict(v) for k, v in model.params.items() if k in effects and k in _TIMED},
-        noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
-        white_noise_dps=data.white * DEG, block_s=float(o.block_s), t0_c=float(data.t0),
-        steps=tuple(steps), notes=tuple(notes), settings=settings, blocks=data.K,
-        unidentifiable=tuple(unident[e] for e in EFFECTS if e in unident and e in cand_ids),
-        candidates=tuple(x[0] for x in rnd.results), maps=residual_maps(data, rnd.resid),
-        gap_dps=gap(data, rnd.resid), heldout_gap_dps=gap(data, rnd.heldout),
-        coef=_coef_dict(data, model, rnd.coef), runs=tuple(x.name for x in data.runs),
-        adev_tau_s=adev[0], adev_dps=adev[1],
-        thermal=steps[-1].thermal if steps else _thermal_state(data, model))
 
 
 def _check_blocks(data: BlockData, base_ids: tuple[str, ...], block_s: float) -> None:
