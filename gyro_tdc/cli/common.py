@@ -410,8 +410,7 @@ def driver_bags(args: argparse.Namespace, paths: Sequence[str]) -> list:
     inputs = DriverInputs(**{f.name: getattr(args, f.name) for f in fields(DriverInputs)})
     if inputs.plain:
         return list(paths)
-    tmp = getattr(args, 'driver_bags_dir', None)
-    if tmp is None:
+    if (tmp := getattr(args, 'driver_bags_dir', None)) is None:
         tmp = args.driver_bags_dir = tempfile.TemporaryDirectory(prefix='gyro_tdc_driver_')
     out = []
     for k, bag in enumerate(expand_bags(paths)):

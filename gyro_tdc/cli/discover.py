@@ -102,8 +102,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     # A sensor constant on every axis has nothing to discover: refused before the search, in
     # train's words (a gyro), or in the accelerometer part's.
     if accel:
-        note = constant_note(runs)
-        if note:
+        if note := constant_note(runs):
             raise DatasetError('Expected an accelerometer to discover on: '
                                f'{note.split("; treated as absent")[0]}.')
         n_bags, runs = len(runs), discovery_runs(runs)
@@ -155,8 +154,7 @@ def _accel_options(args: argparse.Namespace, base: tuple, cands: tuple | None) -
             raise UsageError(f'{opt} is for the gyro; with --sensor accel, train fits the '
                              'accelerometer part and --json holds the search')
     allowed = ('bias',) + ACCEL_EFFECTS
-    bad = [e for e in base + (cands or ()) if e not in allowed]
-    if bad:
+    if bad := [e for e in base + (cands or ()) if e not in allowed]:
         raise UsageError(f'--sensor accel: {", ".join(bad)} cannot be an accelerometer '
                          f'effect; expected some of {", ".join(allowed)}')
     return cands if cands is not None else tuple(e for e in ACCEL_EFFECTS if e not in base)

@@ -170,8 +170,7 @@ class Backlog:
             steps = stamp[lo:] - newest[:-1]
             far = np.flatnonzero(np.abs(steps) > jump)
             if far.size and far[0] == 0:
-                back = self._before
-                if back is not None and abs(stamp[lo] - back[0]) <= jump:
+                if (back := self._before) is not None and abs(stamp[lo] - back[0]) <= jump:
                     # Back to the stream before a stray stamp: take it up where it was.
                     (self._high, self._base), self._before = back, None
                 else:                         # another stream: both marks start again

@@ -64,8 +64,7 @@ class _Front:
     """
 
     def __init__(self, config: LearnConfig) -> None:
-        self.config = config
-        self.buf = array('d')
+        self.config, self.buf = config, array('d')
         self.temps: list[tuple[float, float]] = []
         self.motion: list[tuple[float, bool]] = []
 

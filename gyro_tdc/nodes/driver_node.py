@@ -165,11 +165,6 @@ class DriverNode(ShellNode):
         self._ref_pub = (self.create_publisher(Vector3Stamped, 'rate_table/reference', qos)
                          if self._backend.reference else None)
         self._injected, self._source = source, None
-        if p.retry_max < p.retry_initial:
-            self.destroy_node()
-            raise ConfigError(f'Expected `retry_max` >= `retry_initial` ({p.retry_initial!r}), '
-                              f'got {p.retry_max!r}.')
-        self._backoff = Backoff(p.retry_initial, p.retry_max)
         self._retry_at, self._state, self._last_error, self._device = 0.0, 'starting', '', ''
         # Errors, messages published; implausible readings the source dropped, as last logged.
         self._errors = self._published = self._temps = self._temps_rejected = 0
@@ -179,6 +174,10 @@ class DriverNode(ShellNode):
         self._temp = Temperature(header=Header(frame_id=p.frame_id),
                                  variance=p.temperature_variance)
         try:
+            if p.retry_max < p.retry_initial:
+                raise ConfigError(f'Expected `retry_max` >= `retry_initial` '
+                                  f'({p.retry_initial!r}), got {p.retry_max!r}.')
+            self._backoff = Backoff(p.retry_initial, p.retry_max)
             self._try_open(fatal=not self._backend.retry)
         except ConfigError:
             self.destroy_node()

@@ -165,9 +165,7 @@ class Backoff:
         if not (initial > 0.0 and maximum >= initial):
             raise ValueError(f'Expected 0 < `initial` <= `maximum`, got {initial!r} and '
                              f'{maximum!r}.')
-        self.initial = float(initial)
-        self.maximum = float(maximum)
-        self.failures = 0
+        self.initial, self.maximum, self.failures = float(initial), float(maximum), 0
 
     def next_delay(self) -> float:
         """Record one more failure and return how long to wait before the next attempt."""

@@ -210,15 +210,16 @@ class IioSource(PolledSource):
         self._accel = self._vector('accel', required=False) if read_accel else None
         self._temp = self._temperature(required=require_temperature) if read_temperature else None
         self._channels = tuple(c for c in (*self._gyro, *(self._accel or ()), self._temp) if c)
+        self.rescale()
+        for channel in self._channels:      # a garbled file fails here, not at the first read
+            channel.read()
         #: Whether samples carry acceleration, and temperature.
         self.has_accel, self.has_temperature = self._accel is not None, self._temp is not None
 
     def _shared_or_own(self, kind: str, axis: str, what: str) -> Path | None:
         """Return the file ``in_<kind>_<axis>_<what>``, else ``in_<kind>_<what>``, or None."""
-        for name in (f'in_{kind}_{axis}_{what}', f'in_{kind}_{what}'):
-            if _exists(self.device_dir / name):
-                return self.device_dir / name
-        return None
+        own, shared = (self.device_dir / f'in_{kind}{name}_{what}' for name in (f'_{axis}', ''))
+        return next((path for path in (own, shared) if _exists(path)), None)
 
     def _vector(self, kind: str, *, required: bool) -> tuple[_Channel, ...] | None:
         raws = [self.device_dir / f'in_{kind}_{axis}_raw' for axis in AXES]
@@ -228,14 +229,11 @@ class IioSource(PolledSource):
         if missing:
             return None
         channels = []
-        read = functools.cache(_read_number)
         for axis, path in zip(AXES, raws):
             if (scale_file := self._shared_or_own(kind, axis, 'scale')) is None:
                 raise DeviceError(f'IIO file {str(self.device_dir / f"in_{kind}_scale")!r} is '
                                   f'missing (nor is there in_{kind}_{axis}_scale).')
             channels.append(_Channel(path, scale_file, self._shared_or_own(kind, axis, 'offset')))
-            channels[-1].refresh(read)
-            channels[-1].read()
         return tuple(channels)
 
     def _temperature(self, *, required: bool) -> _Channel | None:
@@ -245,17 +243,13 @@ class IioSource(PolledSource):
             if not _exists(scale_file):
                 raise DeviceError(f'IIO file {str(scale_file)!r} is missing '
                                   '(needed to convert in_temp_raw).')
-            channel = _Channel(raw, scale_file, offset_file if _exists(offset_file) else None,
-                               factor=1.0 / 1000.0)
-        elif _exists(processed):
-            channel = _Channel(processed, factor=1.0 / 1000.0)
-        elif required:
+            return _Channel(raw, scale_file, offset_file if _exists(offset_file) else None,
+                            factor=1.0 / 1000.0)
+        if _exists(processed):
+            return _Channel(processed, factor=1.0 / 1000.0)
+        if required:
             raise DeviceError(f'IIO file {str(raw)!r} is missing (nor is there in_temp_input).')
-        else:
-            return None
-        channel.refresh(_read_number)
-        channel.read()
-        return channel
+        return None
 
     def rescale(self) -> None:
         """

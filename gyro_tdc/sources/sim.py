@@ -114,8 +114,7 @@ class SimSource:
     def _start(self, now: float) -> tuple[int, float, float]:
         """Tie the first sample to the clocks (once, wall time ``now``); return the origin."""
         if self._origin is None:
-            first = self._peek_t()
-            if first is None:
+            if (first := self._peek_t()) is None:
                 raise SourceExhausted(f'scenario {self._scenario!r} has no samples')
             self._origin = (self._clock_ns(), first, now)
         return self._origin
