@@ -117,8 +117,11 @@ class _Checker(FieldChecker):
     def axis(self, path: str, x: Any, *, low: Optional[float] = None) -> Vec3:
         expected = 'a number or a list of 3 numbers' + ('' if low is None else f' >= {low:g}')
         ok = (lambda v: True) if low is None else (lambda v: v >= low)
-        return ((float(x),) * 3 if is_number(x) and ok(float(x))
-                else self.seq(path, x, expected, 3, ok))   # a number not ok fails here too
+        if not (is_number(x) and ok(float(x))):
+            return self.seq(path, x, expected, 3, ok)      # a number not ok fails here too
+        if not abs(float(x)) <= MAX_MAGNITUDE:
+            raise self.fail(path, f'a number within +-{MAX_MAGNITUDE:g}', x)
+        return (float(x),) * 3
 
     def range(self, path: str, x: Any, positive: bool) -> tuple[float, float]:
         expected = f'[low, high] with {"0 < low" if positive else "0 <= low"} <= high'

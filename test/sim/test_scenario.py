@@ -186,6 +186,7 @@ def _bad(**changes):
      'profile.segments'),                           # 1e301 steps: not one array of them
     (_bad(thermometer__noise_c=1e300), 'thermometer.noise_c'),   # its square overflowed
     (_bad(gyro__bias_dps=[0.0, 1e300, 0.0]), 'gyro.bias_dps'),
+    (_bad(gyro__bias_dps=1e300), 'gyro.bias_dps'),    # one number for the three axes
     (_bad(sensor='bmi088'), 'sensor'),
     (_bad(imu_rate_hz=-5), 'imu_rate_hz'),
     (_bad(format_version=2), 'format_version'),
