@@ -208,7 +208,7 @@ class Learner:
 
     def take_model(self) -> CompensationModel | None:
         """Return the newest model swapped in since the last call (once), else None."""
-        swaps, self._swaps = self._swaps, []
+        swaps = self.take_swaps()
         return swaps[-1][1] if swaps else None
 
     def take_swaps(self, t_seen: float | None = None
