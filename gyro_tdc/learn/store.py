@@ -212,14 +212,13 @@ class LearnFile:
                               f'bytes, more than the {MAX_BYTES}-byte limit it is read with')
         st = _lstat(p, lambda why: OutputError(f'cannot write learn_file {str(p)!r}: {why}'))
         if st is not None and _signature(st) != self._mine:
+            kept = f'learn_file {str(p)!r} not overwritten, kept as it is'
             try:
                 doc = LearnFile(p).read()
             except LearnFileError as exc:
-                raise OutputError(f'learn_file {str(p)!r} not overwritten, kept as it is: '
-                                  f'{exc}') from None
+                raise OutputError(f'{kept}: {exc}') from None
             if not (isinstance(doc, dict) and doc.get('format') == FORMAT):
-                raise OutputError(f'learn_file {str(p)!r} not overwritten, kept as it is: it '
-                                  f'is not a learner state ({FORMAT!r} expected)')
+                raise OutputError(f'{kept}: it is not a learner state ({FORMAT!r} expected)')
         atomic_write(p, text, what='learn_file', follow_symlinks=False)
         self.notes, self._mine = [], None
         with contextlib.suppress(OSError):      # unknown: the next write checks the file
