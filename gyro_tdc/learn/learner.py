@@ -430,10 +430,8 @@ class Learner:
         rows, st.rows = st.rows, []
         return self._learn(rows)
 
-    def _learn(self, new: list) -> bool:
-        """Bin new windows of the current stretch (merged per bin and group), refit, offer."""
-        if not new:
-            return False
+    def _learn(self, new: list[Window]) -> bool:
+        """Bin a stretch's new windows (one or more; merged per bin and group), refit, offer."""
         # Still time: the windows' own (a pause between two bursts is not still time).
         self.still_s += sum(r.t1 - r.t0 + (r.t1 - r.t0) / max(r.n - 1, 1) for r in new)
         if self.segment_t0 is None or new[-1].t1 - self.segment_t0 > self.config.entry_s:
