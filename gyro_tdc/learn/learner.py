@@ -208,7 +208,7 @@ class Learner:
 
     def take_model(self) -> CompensationModel | None:
         """Return the newest model swapped in since the last call (once), else None."""
-        swaps, self._swaps = self._swaps, []
+        swaps = self.take_swaps()
         return swaps[-1][1] if swaps else None
 
     def take_swaps(self, t_seen: float | None = None
@@ -430,10 +430,8 @@ class Learner:
         rows, st.rows = st.rows, []
         return self._learn(rows)
 
-    def _learn(self, new: list) -> bool:
-        """Bin new windows of the current stretch (merged per bin and group), refit, swap."""
-        if not new:
-            return False
+    def _learn(self, new: list[Window]) -> bool:
+        """Bin a stretch's new windows (one or more; merged per bin and group), refit, offer."""
         # Still time: the windows' own (a pause between two bursts is not still time).
         self.still_s += sum(r.t1 - r.t0 + (r.t1 - r.t0) / max(r.n - 1, 1) for r in new)
         if self.segment_t0 is None or new[-1].t1 - self.segment_t0 > self.config.entry_s:
@@ -453,7 +451,12 @@ class Learner:
             del lst[:-BIN_ENTRIES]
         remember(self.recent, RecentStretch(self.stretches, self.session, [
             [r.n, r.temp_c, *r.gyro_mean, r.t1] for r in new]), CHECK_STRETCHES, CHECK_ROWS)
-        return self._refit(new[-1].t1)
+        # Refit; the candidate swaps in when it predicts this session's recent still time better.
+        self._fresh = False
+        t_now = new[-1].t1
+        fit = self._fit_table(self.entries(), len(self.bins), t_now, self._floor())
+        rows = [r for s in self.recent if s.session == self.session for r in s.rows]
+        return self._offer(fit, np.asarray(rows, dtype=np.float64).reshape(-1, 6), t_now)
 
     # -- the fit ----------------------------------------------------------------------
 
@@ -461,13 +464,6 @@ class Learner:
         """Return the point table: rows ``(t_end, samples, temp, bx, by, bz, session)``."""
         return np.asarray([[e.t_end, e.samples, e.temp_c, *e.bias, e.session]
                            for v in self.bins.values() for e in v], np.float64).reshape(-1, 7)
-
-    def _refit(self, t_now: float) -> bool:
-        """Fit the point table; swap the candidate in when it predicts recent still time better."""
-        self._fresh = False
-        fit = self._fit_table(self.entries(), len(self.bins), t_now, self._floor())
-        rows = [r for s in self.recent if s.session == self.session for r in s.rows]
-        return self._offer(fit, np.asarray(rows, dtype=np.float64).reshape(-1, 6), t_now)
 
     def _fit_table(self, e: NDArray[np.float64], bins: int, t_now: float, floor: float) -> dict:
         """

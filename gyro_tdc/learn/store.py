@@ -24,6 +24,7 @@ or a learn_file alike. The rules: ``doc/internals/learn.md``.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 import json
 import os
@@ -148,10 +149,9 @@ class LearnFile:
         if (st := _lstat(p, lambda why: LearnFileError(f'{p}: cannot read: {why}'))) is None:
             return None
         if stat.S_ISLNK(st.st_mode):
-            try:
+            to = ''
+            with contextlib.suppress(OSError):
                 to = f' to {os.readlink(p)!r:.80}'
-            except OSError:
-                to = ''
             raise LearnFileError(f'{p}: a symbolic link{to}: not followed (set learn_file to '
                                  'the file itself)')
         if not stat.S_ISREG(st.st_mode):
@@ -212,23 +212,20 @@ class LearnFile:
                               f'bytes, more than the {MAX_BYTES}-byte limit it is read with')
         st = _lstat(p, lambda why: OutputError(f'cannot write learn_file {str(p)!r}: {why}'))
         if st is not None and _signature(st) != self._mine:
+            kept = f'learn_file {str(p)!r} not overwritten, kept as it is'
             try:
                 doc = LearnFile(p).read()
             except LearnFileError as exc:
-                raise OutputError(f'learn_file {str(p)!r} not overwritten, kept as it is: '
-                                  f'{exc}') from None
+                raise OutputError(f'{kept}: {exc}') from None
             if not (isinstance(doc, dict) and doc.get('format') == FORMAT):
-                raise OutputError(f'learn_file {str(p)!r} not overwritten, kept as it is: it '
-                                  f'is not a learner state ({FORMAT!r} expected)')
+                raise OutputError(f'{kept}: it is not a learner state ({FORMAT!r} expected)')
         atomic_write(p, text, what='learn_file', follow_symlinks=False)
-        self.notes = []
-        try:
+        self.notes, self._mine = [], None
+        with contextlib.suppress(OSError):      # unknown: the next write checks the file
             st = os.lstat(p)
             if self._owner_rw(st):
                 st = os.lstat(p)
             self._mine = _signature(st)
-        except OSError:
-            self._mine = None
 
 
 @dataclass(frozen=True)

@@ -413,17 +413,15 @@ class CompensatorCore:
     def _flagged(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
                  temp: float, flags: int) -> None:
         """Count a compensated sample's flags; re-anchor out of range where it is safe."""
-        fc = self.tally.flags
-        if flags & STALE:
-            fc[STALE] += 1
-        if flags & OUT_OF_RANGE:
-            fc[OUT_OF_RANGE] += 1
-            # Out of range a shift would take in the curve's extrapolation error, except: with
-            # a learner (the shift holds only until it gives the cycle its own offset), and for
-            # a model of the offset only (no curve to extrapolate: its range is no limit).
-            if (flags == OUT_OF_RANGE and self.reanchoring.waiting
-                    and (self.learning.extend is not None or self.slot.flat)):
-                self._still(t, raw, out, accel, temp)
+        for bit in (STALE, OUT_OF_RANGE):
+            if flags & bit:
+                self.tally.flags[bit] += 1
+        # Out of range a shift would take in the curve's extrapolation error, except: with a
+        # learner (the shift holds only until it gives the cycle its own offset), and for a
+        # model of the offset only (no curve to extrapolate: its range is no limit).
+        if (flags == OUT_OF_RANGE and self.reanchoring.waiting
+                and (self.learning.extend is not None or self.slot.flat)):
+            self._still(t, raw, out, accel, temp)
 
     def _accel_pass(self, accel: Sequence[float] | None, why: int, out: Vec3 | None = None,
                     var: Vec3 | None = None) -> tuple[Vec3 | None, Vec3 | None]:

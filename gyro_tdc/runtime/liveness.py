@@ -156,9 +156,7 @@ class InputRate:
         elif self.expected and hz is not None and span >= MIN_WINDOW_S:   # judged only
             lo, hi = self.expected * (1.0 - TOLERANCE), self.max_hz * (1.0 + TOLERANCE)
             if not lo <= hz <= hi:
-                slow = hz < lo
-                level, message = WARN, (
-                    f'{self.name} too {"slow" if slow else "fast"}: {hz:.2f} Hz over {span:.1f} '
-                    f's, expected {self.expected:.2f} Hz (at {"least" if slow else "most"} '
-                    f'{lo if slow else hi:.2f})')
+                too, at, bound = ('slow', 'least', lo) if hz < lo else ('fast', 'most', hi)
+                level, message = WARN, (f'{self.name} too {too}: {hz:.2f} Hz over {span:.1f} s, '
+                                        f'expected {self.expected:.2f} Hz (at {at} {bound:.2f})')
         return RateReport(level, message, hz, events, span, silent, self.expected)

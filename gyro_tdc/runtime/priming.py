@@ -99,16 +99,17 @@ def replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], u
     return Replay(t_prev, temp_prev, t_seen)
 
 
-def replay_from_first(model: CompensationModel, policy: Policy,
-                      first: tuple[float, float] | None, history: Iterable[tuple[float, float]],
-                      until: float | None) -> tuple[StreamingCompensator, Replay | None]:
+def replay_from_first(model: CompensationModel, policy: Policy, priming: Priming
+                      ) -> tuple[StreamingCompensator, Replay | None]:
     """
-    Return a new compensator of ``model``, started at ``first`` and replayed up to ``until``.
+    Return a new compensator of ``model``, started at ``priming.first`` and replayed on.
 
-    ``first`` is the first compensated sample; without it (or ``until``) nothing is replayed.
+    It is replayed over ``priming.history`` up to ``priming.last_t``; without a first
+    compensated sample (or a last stamp) nothing is replayed.
     """
     comp = StreamingCompensator(model, out_of_range=policy.out_of_range,
                                 max_extrapolation_c=policy.max_extrapolation_c)
+    first, history, until, _ = priming
     if first is None or until is None:
         return comp, None
     advance(comp, *first)
@@ -124,7 +125,7 @@ def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> Prepa
     on rather than restarting; works out its variance table and content id. Touches nothing
     shared; :meth:`CompensatorCore.install` finishes the replay and swaps it in.
     """
-    comp, state = replay_from_first(model, policy, priming.first, priming.history, priming.last_t)
+    comp, state = replay_from_first(model, policy, priming)
     return PreparedModel(model, model.model_id, comp, variance_table(model.residual_var, policy),
                          np.asarray(model.scale, dtype=np.float64),
                          set(model.features) <= STATIC_EFFECTS, priming, state, policy)
@@ -156,7 +157,7 @@ def catch_up(prepared: PreparedModel, priming: Priming, policy: Policy) -> Strea
     state = prepared.replay
     if (state is None or prepared.priming.first != first
             or prepared.priming.last_t is None or last_t < prepared.priming.last_t):
-        comp, state = replay_from_first(model, policy, first, history, last_t)
+        comp, state = replay_from_first(model, policy, priming)
     else:
         # The samples recorded since, from the newest back.
         tail = list(takewhile(lambda entry: entry[0] > state.t_seen, reversed(history)))

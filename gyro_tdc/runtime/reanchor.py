@@ -311,6 +311,7 @@ class StillnessDetector:
         self.provisional: Anchor | None = None
         self._c: Vec3 = (0.0, 0.0, 0.0)
         self._resumed = False              # the next window judged follows a pause
+        self._early = early_allowed(self.tolerance, self.window, self.window_max)
         self._end_window()
 
     def _end_window(self) -> None:
@@ -323,7 +324,6 @@ class StillnessDetector:
         self._rows = array('d')            # its stamps and compensated rates (4 a sample)
         self._done = 0                     # samples summed into whole blocks ...
         self._part = BlockStats()          # ... their statistics, around the run's centre
-        self._early = early_allowed(self.tolerance, self.window, self.window_max)
 
     def update(self, t: float, raw: Sequence[float], out: Sequence[float],
                accel: Sequence[float] | None, temp_c: float) -> Anchor | None:
