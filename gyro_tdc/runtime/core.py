@@ -55,6 +55,7 @@ __all__ = ['CompensatorCore', 'Output']
 #: message's as it is), ``accel_variance`` what to add to the linear_acceleration_covariance
 #: diagonal, (m/s^2)^2 (None: leave it).
 Output = tuple[float, float, float, Vec3, int, Vec3 | None, Vec3 | None]
+_INF = math.inf
 
 
 class CompensatorCore:
@@ -330,9 +331,11 @@ class CompensatorCore:
         """
         tally, stream = self.tally, self.stream
         tally.counts['in'] += 1
+        if not -_INF < t < _INF:        # no time: in no session, not learnt from (NaN too)
+            return self._pass(t, wx, wy, wz, NON_FINITE, accel)
         if (last := stream.t) is None:  # the first session starts
             self.reanchoring.sessions.begin(t, tally.counts['in'])
-        elif (d := t - last) > self._pause_s or d < -RESTART_BACK_S:   # NaN fails the compares
+        elif (d := t - last) > self._pause_s or d < -RESTART_BACK_S:
             self._session_break(t, d)
         gate = self.learning
         if t >= gate.gate:             # learning: a model due, or a sample to hand over
@@ -346,8 +349,8 @@ class CompensatorCore:
         if slot.comp is None:
             return self._pass(t, wx, wy, wz, NO_MODEL)
         m = _MAX_RATE                   # NaN fails the compares
-        if not (abs(wx) <= m and abs(wy) <= m and abs(wz) <= m and math.isfinite(t)):
-            finite = all(map(math.isfinite, (wx, wy, wz, t)))
+        if not (abs(wx) <= m and abs(wy) <= m and abs(wz) <= m):
+            finite = all(map(math.isfinite, (wx, wy, wz)))
             return self._pass(t, wx, wy, wz, IMPLAUSIBLE_INPUT if finite else NON_FINITE, accel)
         if (held := self.temps.at(t)) is None:
             return self._pass(t, wx, wy, wz, NO_TEMPERATURE, accel)

@@ -171,6 +171,24 @@ def test_non_finite_passes_through_flagged(model):
     assert core.process(1.0, 0.1, 0.2, 0.3)[4] == 0
 
 
+@pytest.mark.parametrize('learn', [False, True])
+def test_a_stamp_that_is_no_time_passes_through_and_changes_nothing(model, learn):
+    # An infinite stamp was a session break (the held temperature dropped: the next samples
+    # said "no temperature yet"); while learning it reached the install of a model not
+    # queued (+inf >= +inf, AttributeError) and set the learner's hand-off clock to +inf.
+    from gyro_tdc.learn.learner import Learner
+    core = CompensatorCore(Policy(), model)
+    core.learner = Learner(prior=model) if learn else None
+    core.add_temperature(0.0, 20.0)
+    assert core.process(0.5, 0.1, 0.2, 0.3)[4] == 0
+    for bad in (math.inf, math.nan, -math.inf):
+        assert core.process(bad, 0.1, 0.2, 0.3)[4] == NON_FINITE | PASSTHROUGH
+    assert core.process(1.0, 0.1, 0.2, 0.3)[4] == 0
+    assert core.flag_counts[NON_FINITE] == 3 and core.reanchoring.sessions.session == 1
+    if learn:                         # the hand-off still runs by the stamps' clock
+        assert core.learning.next < math.inf
+
+
 @pytest.mark.parametrize('policy', ['hold', 'passthrough'])
 def test_stale_temperature(model, policy):
     core = CompensatorCore(Policy(temperature_timeout=2.0, stale_policy=policy,
