@@ -40,10 +40,10 @@ from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPI
 from gyro_tdc.errors import GyroTdcError, one_line
 
 __all__ = ['ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
-           'add_session_options', 'bag_options', 'comma_floats', 'command_line', 'driver_bags',
+           'add_session_options', 'bag_options', 'comma_floats', 'command_line', 'driver_inputs',
            'effect_listing', 'finite_float', 'key_listing', 'non_negative_float',
            'non_negative_int', 'parse_reference', 'positive_float', 'positive_int', 'probability',
-           'progress', 'progress_bar', 'run_command']
+           'progress', 'progress_bar', 'refuse_driver_logs', 'run_command']
 
 _UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': RAD_PER_DEG, 'dps': RAD_PER_DEG}
 
@@ -232,7 +232,7 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
         imu_instance=args.imu_instance, allow_onboard_corrected=args.allow_onboard_corrected,
         sessions=getattr(args, 'sessions', 'auto'),
         session_gap_s=float(getattr(args, 'session_gap', 0.0)),
-        temperature_source=args.temperature_source, **more)
+        temperature_source=args.temperature_source, driver=driver_inputs(args), **more)
 
 
 def progress(args: argparse.Namespace) -> bool:
@@ -388,38 +388,26 @@ def add_driver_options(parser: argparse.ArgumentParser) -> None:
         g.add_argument('--' + name.replace('_', '-'), default=getattr(d, name), help=text, **how)
 
 
-def driver_bags(args: argparse.Namespace, paths: Sequence[str]) -> list:
+def driver_inputs(args: argparse.Namespace) -> object:
     """
-    Return the bags to read: as given, or rewritten as Imu + Temperature by field.
+    Return the :class:`gyro_tdc.data.DriverInputs` of :func:`add_driver_options`, or None.
 
-    With every :func:`add_driver_options` option at its default the paths come back
-    unchanged; otherwise each bag is read by field (:func:`gyro_tdc.data.normalize_bag`)
-    into a temporary directory that lives as long as ``args`` (each bag keeps its name).
-
-    Raises
-    ------
-    GyroTdcError
-        A bad option (one line naming it), a flight log among the paths, or a bag that
-        cannot be read.
-
+    None when the command has no such options or every one is at its default (a plain Imu +
+    Temperature bag). Raises ConfigError for a bad one (a line naming it).
     """
     from dataclasses import fields
-    import tempfile
-    from gyro_tdc.data import DriverInputs, expand_bags, is_flight_log, normalize_bag
+    from gyro_tdc.data import DriverInputs
+    if not hasattr(args, 'imu_type'):
+        return None
     # Every option of add_driver_options is the DriverInputs field of its name.
     inputs = DriverInputs(**{f.name: getattr(args, f.name) for f in fields(DriverInputs)})
-    if inputs.plain:
-        return list(paths)
-    if (tmp := getattr(args, 'driver_bags_dir', None)) is None:
-        tmp = args.driver_bags_dir = tempfile.TemporaryDirectory(prefix='gyro_tdc_driver_')
-    out = []
-    for k, bag in enumerate(expand_bags(paths)):
-        if is_flight_log(bag):
+    return None if inputs.plain else inputs
+
+
+def refuse_driver_logs(bag: BagOptions, paths: Sequence[str]) -> None:
+    """Refuse a flight log among ``paths`` when the bags are read by field (UsageError)."""
+    from gyro_tdc.data import expand_bags, is_flight_log
+    for path in expand_bags(paths) if bag.driver is not None else ():
+        if is_flight_log(path):
             raise UsageError(f'--imu-type and the other driver options read rosbag2 bags, '
-                             f'not the flight log {str(bag)!r}')
-        dest = os.path.join(tmp.name, f'{k:03d}', bag.name)
-        os.makedirs(os.path.dirname(dest))
-        out.append(str(normalize_bag(
-            bag, inputs, imu_topic=args.imu_topic, temperature_topic=args.temperature_topic,
-            out=dest, warn=lambda line, bag=bag: print(f'warning: {bag}: {line}', flush=True))))
-    return out
+                             f'not the flight log {str(path)!r}')

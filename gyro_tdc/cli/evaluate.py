@@ -29,8 +29,8 @@ from typing import Iterator, Optional, Sequence
 
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, comma_floats,
-                                 driver_bags, non_negative_float, progress_bar, run_command,
-                                 UsageError)
+                                 non_negative_float, progress_bar, refuse_driver_logs,
+                                 run_command, UsageError)
 from gyro_tdc.data import find_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                format_still, imu_mismatch, load_models, model_description,
@@ -114,8 +114,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     baseline = (specs.index(args.baseline) if args.baseline is not None
                 else (0 if len(specs) == 2 else None))
     bag = bag_options(args)
-    args.bags = driver_bags(args, args.bags)       # a driver's own types, read by field
-    args.train = driver_bags(args, args.train) if args.train else args.train
+    refuse_driver_logs(bag, [*args.bags, *(args.train or ())])   # read by field
     auto = args.reanchor == AUTO_REANCHOR
     # One description of the re-anchoring: the console line and the plot titles.
     how = ('re-anchored (auto): mean error removed over the head of each session, averaged '

@@ -30,8 +30,8 @@ from typing import Optional, Sequence
 from gyro_tdc.base import atomic_json, DEG_PER_RAD, plain, start_imports
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
-                                 driver_bags, effect_listing, finite_float, positive_float,
-                                 positive_int, run_command)
+                                 effect_listing, finite_float, positive_float,
+                                 positive_int, refuse_driver_logs, run_command)
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import format_coverage, format_sessions, format_training
 from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions, TrainResult
@@ -150,7 +150,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     if args.motion_topic and not args.still_only:
         raise GyroTdcError('--motion-topic: only with --still-only.')
     bag = bag_options(args, motion_topic=args.motion_topic)
-    args.bags = driver_bags(args, args.bags)       # a driver's own types, read by field
+    refuse_driver_logs(bag, args.bags)     # a driver's own types are read by field
     fit = train_still_only if args.still_only else train     # still: no reference is read
     # Most of the start-up is scipy's import; the read mostly waits on the storage.
     start_imports(('scipy.special', 'scipy.optimize', 'scipy.cluster.vq'))

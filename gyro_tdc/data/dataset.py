@@ -26,6 +26,7 @@ import math
 import os
 from pathlib import Path
 import re
+from tempfile import TemporaryDirectory
 from typing import Callable, Iterable, Iterator
 
 from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperatures,
@@ -35,6 +36,7 @@ from gyro_tdc.data.bag.metadata import (has_metadata, missing, storage_files,
 from gyro_tdc.data.bag.reader import read_bag
 from gyro_tdc.data.bag.storage_mcap import CUT_OFF
 from gyro_tdc.data.dataflash import read_dataflash
+from gyro_tdc.data.driver_bags import normalize_bag
 from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
 from gyro_tdc.data.options import BagOptions
 from gyro_tdc.data.runs import float_array, Run
@@ -222,9 +224,18 @@ def _read_source(bag: str | os.PathLike, o: BagOptions, *,
                  read_reference: bool) -> tuple[object, dict]:
     """Read a rosbag2 bag, or a flight-controller log (one IMU, no reference topic)."""
     if (fmt := detect_format(bag, o.log_format)) == 'rosbag2':
-        return read_bag(bag, imu_topic=o.imu_topic, temperature_topic=o.temperature_topic,
-                        reference_topic=o.reference_topic if read_reference else None,
-                        progress=o.progress, accel=bool(o.accel)), {}
+        topics = dict(imu_topic=o.imu_topic, temperature_topic=o.temperature_topic)
+        how = dict(reference_topic=o.reference_topic if read_reference else None,
+                   progress=o.progress, accel=bool(o.accel))
+        if o.driver is None or o.driver.plain:
+            return read_bag(bag, **topics, **how), {}
+        # A driver's types, read by field into a plain bag that lives as long as this read.
+        notes: list[str] = []
+        with TemporaryDirectory(prefix='gyro_tdc_driver_') as tmp:
+            plain = normalize_bag(bag, o.driver, **topics, out=Path(tmp) / Path(bag).name,
+                                  warn=notes.append)
+            data = read_bag(plain, **topics, **how)
+        return replace(data, path=str(bag), warnings=(*notes, *data.warnings)), {}
     if not Path(bag).is_file():
         raise DatasetError(f'Log {str(bag)!r} is not a file.')
     log = (read_ulog if fmt == 'ulog' else read_dataflash)(

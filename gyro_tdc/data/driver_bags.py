@@ -27,6 +27,7 @@ fields the same way (:mod:`gyro_tdc.data.field_paths`), so a model is trained on
 
 from __future__ import annotations
 
+from array import array
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -166,7 +167,8 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
             imu_name = imu_conn.msgtype
             rate, stamp, kind = rate_fields(imu_name, inputs, fields_of, _option)
             value, tstamp = temperature_fields(temp_conn.msgtype, inputs, fields_of, _option)
-            imu_t, gyro, accel, temp_t, temp_c = [], [], [], [], []
+            # Flat float64 arrays: a fifth of the memory of lists of Python floats.
+            imu_t, gyro, accel, temp_t, temp_c = (array('d') for _ in range(5))
             frame_id, gyro_cov, accel_cov = 'imu_link', None, (-1.0, 0.0, 0.0)
             for conn, _, raw in messages(imu_conn, temp_conn):
                 msg = store.deserialize_cdr(raw, conn.msgtype)
@@ -177,10 +179,10 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
                         gyro_cov = tuple(msg.angular_velocity_covariance[[0, 4, 8]])
                         accel_cov = tuple(msg.linear_acceleration_covariance[[0, 4, 8]])
                     imu_t.append(stamp_seconds(kind, stamp(msg)))
-                    gyro.append(rate(msg))
+                    gyro.extend(rate(msg))
                     if imu_name == IMU_TYPE:
                         a = msg.linear_acceleration
-                        accel.append((a.x, a.y, a.z))
+                        accel.extend((a.x, a.y, a.z))
                 elif tstamp is not None or imu_t:    # else no IMU stamp to give it yet
                     temp_t.append(tstamp(msg) if tstamp else imu_t[-1])
                     temp_c.append(value(msg))
@@ -189,10 +191,11 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
         raise DatasetError(f'cannot read bag {str(path)!r}: {one_line(exc)}{cut}') from None
     if not imu_t:
         raise DatasetError(f'bag {str(path)!r} has no message on {imu_topic!r}.')
+    temp_t, temp_c = np.frombuffer(temp_t), np.frombuffer(temp_c)
     order = np.argsort(temp_t, kind='stable')
-    write_bag(out, imu_t=np.array(imu_t), gyro=np.array(gyro),
-              accel=np.array(accel) if accel else np.zeros((len(imu_t), 3)),
-              temp_t=np.array(temp_t)[order], temp_c=np.array(temp_c)[order],
+    write_bag(out, imu_t=np.frombuffer(imu_t), gyro=np.frombuffer(gyro).reshape(-1, 3),
+              accel=np.frombuffer(accel).reshape(-1, 3) if accel else np.zeros((len(imu_t), 3)),
+              temp_t=temp_t[order], temp_c=temp_c[order],
               frame_id=frame_id, imu_topic=imu_topic, temperature_topic=temperature_topic,
               gyro_cov=gyro_cov, accel_cov=accel_cov)
     return Path(out)

@@ -94,6 +94,10 @@ class BagOptions:
     #: (the barometer's, a proxy) or ``'TOPIC.FIELD'`` / ``'MSG.Field'`` (another
     #: thermometer of the board, a proxy).
     temperature_source: str = 'imu'
+    #: How a driver's bag holds the gyro and the thermometer, a
+    #: :class:`~gyro_tdc.data.driver_bags.DriverInputs`: read by field into a plain bag
+    #: first (the run keeps the bag's own path); None: Imu + Temperature as they are.
+    driver: object = None
 
     def __post_init__(self) -> None:
         """Check the reference rate (held as a tuple of floats), log format and instance."""

@@ -31,8 +31,10 @@ import sqlite3
 from bags import null_message_data
 from driver_msgs import driver_typestore
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.data import DriverInputs, normalize_bag, read_bag, write_bag
+from gyro_tdc.data import (DriverInputs, encode_twists, normalize_bag, read_bag, TWIST_TYPE,
+                           write_bag)
 from gyro_tdc.errors import ConfigError, DatasetError
+from gyro_tdc.model.modelfile import load_model
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -57,8 +59,12 @@ def samples(n=4000, rate_hz=100.0, seed=3):
     return us, w, t_us, t_c
 
 
-def driver_bag(path, n=4000, storage='sqlite3'):
-    """Write what a PX4 + MicroStrain pair would record: FRD SensorGyro, nested temperature."""
+def driver_bag(path, n=4000, storage='sqlite3', cmd_vel=False):
+    """
+    Write what a PX4 + MicroStrain pair would record: FRD SensorGyro, nested temperature.
+
+    ``cmd_vel``: also a ``/cmd_vel`` Twist at every tenth gyro sample, commanding no motion.
+    """
     store = driver_typestore()
     Gyro, Stats = store.types[GYRO_TYPE], store.types[STATS_TYPE]
     MipHeader = store.types['microstrain_inertial_msgs/msg/MipHeader']
@@ -70,6 +76,8 @@ def driver_bag(path, n=4000, storage='sqlite3'):
         gc = writer.add_connection('/fmu/out/sensor_gyro', GYRO_TYPE, typestore=store)
         tc = writer.add_connection('/mip/sensor/temperature_statistics', STATS_TYPE,
                                    typestore=store)
+        twist = TWIST_TYPE if cmd_vel else None
+        vc = writer.add_connection('/cmd_vel', twist, typestore=store) if twist else None
         j = 0
         for k, stamp in enumerate(us):
             if j < len(t_us) and t_us[j] <= stamp:
@@ -82,6 +90,8 @@ def driver_bag(path, n=4000, storage='sqlite3'):
             msg = Gyro(int(stamp), int(stamp), 1, np.float32(x), np.float32(-y), np.float32(-z),
                        np.float32(40.0), 0, np.zeros(3, dtype=np.uint8), 1)
             writer.write(gc, int(stamp) * 1000, store.serialize_cdr(msg, GYRO_TYPE))
+            if vc is not None and k % 10 == 0:
+                writer.write(vc, int(stamp) * 1000, encode_twists(np.zeros((1, 6)))[0])
     return path
 
 
@@ -126,12 +136,31 @@ def test_train_reads_a_driver_bag_with_the_node_parameters_as_options(tmp_path, 
             '--no-accel', '--no-progress', '--out', str(tmp_path / 'model.yaml')]
     opts = [x for k, v in OPTIONS.items() for x in ('--' + k.replace('_', '-'), v)]
     assert train_main(args + opts) == 0
-    assert (tmp_path / 'model.yaml').exists()
-    capsys.readouterr()
+    first = load_model(tmp_path / 'model.yaml')
+    # The model names the bag the user gave (not the plain copy read by field, a temporary
+    # directory): the same bag trains the same model id again.
+    assert first.metrics['runs'] == [str(bag)] and first.created['bags'] == [str(bag)]
+    assert train_main(args[:-1] + [str(tmp_path / 'again.yaml')] + opts) == 0
+    assert load_model(tmp_path / 'again.yaml').model_id == first.model_id
+    out = capsys.readouterr().out
+    assert f'read {bag}: ' in out and 'gyro_tdc_driver_' not in out
     # Without the options the bag is refused in one line (not an Imu topic).
     assert train_main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'Traceback' not in err[0]
+
+
+def test_still_only_training_of_a_driver_bag_reads_its_motion_topic(tmp_path, capsys):
+    # The motion veto is read from the bag the user gave: the plain copy read by field holds
+    # the gyro and the thermometer only (it was refused: "has no motion topic").
+    bag = driver_bag(tmp_path / 'px4', n=8000, cmd_vel=True)
+    args = [str(bag), '--imu-topic', '/fmu/out/sensor_gyro', '--temperature-topic',
+            '/mip/sensor/temperature_statistics', '--features', 'dT', '--kind', 'poly',
+            '--no-accel', '--no-progress', '--still-only', '--motion-topic', '/cmd_vel',
+            '--min-still', '20', '--out', str(tmp_path / 'model.yaml')]
+    opts = [x for k, v in OPTIONS.items() for x in ('--' + k.replace('_', '-'), v)]
+    assert train_main(args + opts) == 0, capsys.readouterr()
+    assert load_model(tmp_path / 'model.yaml').metrics['runs'] == [str(bag)]
 
 
 @pytest.mark.parametrize('change, error, needles', [
