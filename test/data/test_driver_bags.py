@@ -30,6 +30,7 @@ import sqlite3
 
 from bags import null_message_data
 from driver_msgs import driver_typestore
+from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import (DriverInputs, encode_twists, normalize_bag, read_bag, TWIST_TYPE,
                            write_bag)
@@ -161,6 +162,20 @@ def test_still_only_training_of_a_driver_bag_reads_its_motion_topic(tmp_path, ca
     opts = [x for k, v in OPTIONS.items() for x in ('--' + k.replace('_', '-'), v)]
     assert train_main(args + opts) == 0, capsys.readouterr()
     assert load_model(tmp_path / 'model.yaml').metrics['runs'] == [str(bag)]
+
+
+def test_evaluate_reads_a_bag_by_field_as_the_plain_read_does(tmp_path, capsys):
+    # An Imu + Temperature bag read by field (its own types' fields named): every line the
+    # same as the plain read's, the bag named as given.
+    us, w, t_us, t_c = samples(n=6000)
+    bag = tmp_path / 'plain'
+    write_bag(bag, imu_t=us * 1e-6, gyro=w, accel=np.zeros_like(w), temp_t=t_us * 1e-6,
+              temp_c=t_c)
+    args = [str(bag), '--model', 'config/models/l3gd20_modified.yaml', '--no-progress']
+    assert evaluate_main(args) == 0
+    plain = capsys.readouterr().out
+    assert evaluate_main(args + ['--temperature-field', 'temperature']) == 0
+    assert capsys.readouterr().out == plain and f'read {bag}: ' in plain
 
 
 @pytest.mark.parametrize('change, error, needles', [
