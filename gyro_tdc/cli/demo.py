@@ -103,7 +103,7 @@ def _run_step(n: int, command: str, argv: Sequence[str], covered: set) -> None:
     """
     print(f'$ {PROG} {command} {shlex.join(argv)}', flush=True)
     bag = str(argv[0]) if command == 'train' else None
-    seen, buffer = bag in covered, io.StringIO()
+    seen, buffer = bag is not None and bag in covered, io.StringIO()
     with contextlib.redirect_stdout(buffer) if seen else contextlib.nullcontext():
         rc = load_main(command)(list(argv))
     if seen:
@@ -112,7 +112,8 @@ def _run_step(n: int, command: str, argv: Sequence[str], covered: set) -> None:
         if len(kept) < len(lines):
             kept.append(f'(coverage of {bag}: as printed above)')
         print('\n'.join(kept), flush=True)
-    covered.add(bag)
+    if bag is not None:
+        covered.add(bag)
     if rc != 0:
         raise GyroTdcError(f'step {n} ({command}) failed with exit code {rc}')
 

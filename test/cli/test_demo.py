@@ -122,3 +122,27 @@ def test_live_counts_are_explained(counts, needles):
     for needle in needles:
         assert needle in text
     assert len(lines) == (1 if counts[:2] == counts[2:] else 2)
+
+
+def test_only_a_bag_trained_again_has_its_coverage_left_out(monkeypatch, capsys):
+    # Every step but train streams its output; the second non-train step was buffered to the
+    # end and its coverage-like lines dropped ("coverage of None"), as if a bag seen before.
+    import io
+    import sys
+    streamed = []
+
+    def fake_main(argv):
+        streamed.append(not isinstance(sys.stdout, io.StringIO))   # the demo's buffer
+        print('coverage 15 .. 20 degC' if argv[0] == 'bag' else f'step {argv[0]}')
+        return 0
+    monkeypatch.setattr(demo, 'load_main', lambda command: fake_main)
+    monkeypatch.setattr(demo, 'is_coverage_line', lambda line: line.startswith('coverage'))
+    covered = set()
+    for n, (command, argv) in enumerate([('evaluate', ['a']), ('discover', ['b']),
+                                         ('train', ['bag']), ('train', ['bag']),
+                                         ('evaluate', ['c'])]):
+        demo._run_step(n, command, argv, covered)
+    out = capsys.readouterr().out
+    assert streamed == [True, True, True, False, True]
+    assert out.count('coverage 15 .. 20 degC') == 1 and 'coverage of None' not in out
+    assert '(coverage of bag: as printed above)' in out and covered == {'bag'}
